@@ -1,0 +1,24 @@
+#!/usr/bin/env bash
+# Install everything the project needs on a fresh machine (Debian + Python >= 3.11 + Node):
+# system libraries for headless rendering, the Python package with its test extras, and
+# the Khronos glTF validator used by the tests.
+set -euo pipefail
+cd "$(dirname "$0")"
+
+need=()
+for pkg in libegl1 libgl1-mesa-dri libgbm1; do
+  dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
+done
+if [ ${#need[@]} -gt 0 ]; then
+  if [ "$(id -u)" = 0 ]; then
+    echo "install.sh: installing Debian packages: ${need[*]}"
+    apt-get update -qq && apt-get install -y -qq "${need[@]}" >/dev/null
+  else
+    echo "install.sh: please install the Debian packages ${need[*]} (sudo apt-get install ${need[*]})" >&2
+    exit 1
+  fi
+fi
+
+python3 -m pip install -q --disable-pip-version-check -e ".[test]"
+npm ci --silent --no-audit --no-fund
+echo "install.sh: done"
