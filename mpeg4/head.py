@@ -264,6 +264,27 @@ class Head:
         v = np.concatenate([p.vertices for p in self.parts.values()])
         return np.array([v.min(axis=0), v.max(axis=0)])
 
+    def summary(self) -> str:
+        """A few lines a person can read: parts, feature points, FAPU, morph targets, FATs."""
+        lines = ["parts:"]
+        for p in self.parts.values():
+            extra = " textured" if p.texture is not None else ""
+            lines.append(f"  {p.name:<14} {p.n_vertices:>6} vertices {len(p.triangles):>6} triangles{extra}")
+        lo, hi = self.bounds
+        lines.append("size (cm): " + " x ".join(f"{d * 100:.1f}" for d in hi - lo))
+        missing = [i for i in FP_IDS if i not in self.feature_points]
+        lines.append(f"feature points: {len(self.feature_points)} of {len(FP_IDS)}"
+                     + (f" (missing: {', '.join(missing[:12])}{' ...' if len(missing) > 12 else ''})" if missing else ""))
+        try:
+            lines.append("FAPU (mm): " + "  ".join(f"{k} {v * 1000:.2f}" for k, v in self.fapu.as_dict().items()))
+        except InputError as e:
+            lines.append(f"FAPU: not measurable ({e.what})")
+        names = sorted(self.morph_targets)
+        lines.append(f"morph targets: {len(names)}" + (f" ({', '.join(names[:6])}{' ...' if len(names) > 6 else ''})"
+                                                        if names else ""))
+        lines.append(f"animation tables: {0 if self.fat is None else len(self.fat)}")
+        return "\n".join(lines)
+
     # --- changes --------------------------------------------------------------------
     def copy(self) -> Head:
         """A deep copy."""
