@@ -1,0 +1,328 @@
+"""From feature points marked on a front and a side photo to 3D feature points.
+
+The front photo gives x and y, the side photo z and y. The two views are brought to a
+common height scale by the points marked in both (their heights must agree: a straight
+line maps side-photo rows to front-photo heights), a small head roll in the front photo is
+removed using the pupils, and the absolute size comes from the user's interpupillary
+distance (photos carry none). The side photo may face either way; which side of the face
+it shows is read from its labels and mirrored to the other side. Points one view cannot
+show take their missing coordinate from the generic head, similarity-fitted to the points
+that are known in 3D; points neither view shows (tongue, teeth, 7.1) come wholly from it.
+
+Cameras are orthographic by default. With a focal length (pixels, both photos) each view
+is a pinhole camera on its axis through the image centre, and the points are found by a
+few rounds of alternating between the views (each view's depths come from the other).
+
+Coordinates out: metres, the generic head's MPEG-4 neutral frame (+x the face's left,
++y up, +z towards the viewer), the midline at x = 0.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mpeg4.catalogue import FEATURE_POINTS, FP_IDS, check_fp_id
+from mpeg4.errors import InputError
+from mpeg4.head import Head
+
+from .deform import fit_similarity
+
+__all__ = ["DEFAULT_IPD_MM", "Calibration", "calibrate"]
+
+#: Adult mean interpupillary distance (mm) used when the user gives none.
+DEFAULT_IPD_MM = 63.0
+
+# Rounds of the alternating perspective solution (converges to ~1e-9 m in 5).
+_PERSPECTIVE_ROUNDS = 8
+
+
+@dataclass
+class Calibration:
+    """3D feature points and how they were obtained.
+
+    Attributes
+    ----------
+    points : dict of str to (3,) float64
+        FP id → position, metres, for all 84 points.
+    source : dict of str to str
+        FP id → ``"front+side"``, ``"front"``, ``"side"`` (with the missing coordinate from
+        the generic head), ``"mirror"`` (its partner's side-view depth) or ``"generic"``.
+    roll_deg : float
+        Head roll removed from the front photo (positive: the face's left eye was higher).
+    metres_per_px : dict
+        ``front`` and ``side`` scales (orthographic; at the pupils' depth in perspective).
+    side_facing : {"left", "right"}
+        Which way the nose points in the side photo.
+    visible_side : {"L", "R"}
+        Which side of the face the side photo shows (by its labels).
+    height_residual_mm : dict of str to float
+        For points marked in both views, side-photo height minus front-photo height.
+    assumptions : dict
+        What the numbers rest on (IPD, camera model), for the output's provenance.
+    """
+
+    points: dict[str, np.ndarray]
+    source: dict[str, str]
+    roll_deg: float
+    metres_per_px: dict[str, float]
+    side_facing: str
+    visible_side: str
+    height_residual_mm: dict[str, float]
+    assumptions: dict = field(default_factory=dict)
+
+
+def _as_points(view: Mapping, name: str) -> dict[str, np.ndarray]:
+    out = {}
+    for fp_id, xy in view.items():
+        check_fp_id(fp_id, where=f"{name} view")
+        p = np.asarray(xy, dtype=np.float64).reshape(-1)
+        if p.shape != (2,) or not np.isfinite(p).all():
+            raise InputError(f"feature point {fp_id} is {xy!r}, expected two finite pixel numbers",
+                             where=f"{name} view", fix="give [x, y] in pixels")
+        out[fp_id] = p
+    return out
+
+
+def _check_inside(points: dict[str, np.ndarray], size, name: str) -> None:
+    if size is None:
+        return
+    w, h = size
+    for fp_id, (x, y) in points.items():
+        if not (-0.5 <= x <= w - 0.5 and -0.5 <= y <= h - 0.5):
+            raise InputError(f"feature point {fp_id} at ({x:.1f}, {y:.1f}) lies outside the {w}x{h} image",
+                             where=f"{name} view", fix="drag it onto the photo or remove it")
+
+
+def _side_depths(side: dict[str, np.ndarray]) -> float:
+    """+1 if the nose points to the image's right in the side photo, else -1."""
+    if "9.3" not in side:
+        raise InputError("the tip of the nose (9.3) is not marked", where="side view",
+                         fix="mark 9.3; the side photo's facing direction is read from it")
+    back = [i for i in ("11.6", "10.3", "10.4", "10.1", "10.2", "10.5", "10.6", "7.1") if i in side]
+    ref = side[back[0]][0] if back else np.median([p[0] for p in side.values()])
+    if side["9.3"][0] == ref:
+        raise InputError("cannot tell which way the side photo faces", where="side view",
+                         fix="mark the tip of the nose (9.3) and an ear point (10.x) or the back of the skull (11.6)")
+    return 1.0 if side["9.3"][0] > ref else -1.0
+
+
+def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], generic: Head,
+              ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
+              front_size: tuple[int, int] | None = None, side_size: tuple[int, int] | None = None,
+              height_tol_mm: float = 8.0) -> Calibration:
+    """3D feature points from 2D points marked on a front and a side photo.
+
+    Parameters
+    ----------
+    front, side : mapping of str to (2,) array
+        FP id → pixel (x right, y down) in each photo. The front view needs both pupils
+        (3.5, 3.6); the side view needs the tip of the nose (9.3) and at least three
+        points also marked in the front view (either side's id: heights are mirrored).
+    generic : Head
+        The generic head, for coordinates the photos cannot give.
+    ipd_mm : float
+        The person's interpupillary distance, which sets the absolute size.
+    focal_px : float, optional
+        Focal length in pixels of both photos; orthographic cameras when None.
+    front_size, side_size : (width, height), optional
+        Image sizes: points outside are errors; needed for the principal point with
+        ``focal_px`` (the image centre).
+    height_tol_mm : float
+        Largest accepted disagreement between a point's height in the two views.
+
+    Returns
+    -------
+    Calibration
+    """
+    front = _as_points(front, "front")
+    side = _as_points(side, "side")
+    _check_inside(front, front_size, "front")
+    _check_inside(side, side_size, "side")
+    missing = [i for i in ("3.5", "3.6") if i not in front]
+    if missing:
+        raise InputError(f"the pupils {' and '.join(missing)} are not marked", where="front view",
+                         fix="mark both pupils (3.5 left, 3.6 right); they set the scale and the roll")
+    if not ipd_mm > 0:
+        raise InputError(f"interpupillary distance {ipd_mm} mm is not positive", fix="give --ipd in millimetres, e.g. 63")
+    if focal_px is not None and (front_size is None or side_size is None):
+        raise InputError("a perspective calibration needs both image sizes", fix="give front_size and side_size")
+    ipd = ipd_mm / 1000.0
+
+    # Front: undo the roll (the face's left pupil 3.5 appears on the image's right).
+    d = front["3.5"] - front["3.6"]
+    if d[0] <= 0:
+        raise InputError("the left pupil 3.5 is not to the right of the right pupil 3.6 in the image",
+                         where="front view", fix="3.5 is the face's own left pupil, on the viewer's right; "
+                                                 "swap 3.5 and 3.6 if they were placed the other way")
+    roll = float(np.arctan2(-d[1], d[0]))  # image y grows downwards
+    mid = 0.5 * (front["3.5"] + front["3.6"])
+    c, s = np.cos(roll), np.sin(roll)
+    rot = np.array([[c, -s], [s, c]])  # turns the eye line horizontal (image coordinates, y down)
+    fu = {i: rot @ (p - mid) for i, p in front.items()}  # pixels, pupils' midpoint at 0, y down
+    ipd_px = float(np.linalg.norm(d))
+
+    facing = _side_depths(side)
+    labelled = [FEATURE_POINTS[i].side for i in side]
+    visible = "R" if labelled.count("R") > labelled.count("L") else "L"
+    # Side heights for every id the side view gives, its own or its mirror partner's.
+    side_any: dict[str, np.ndarray] = {}
+    for i, p in side.items():
+        side_any[i] = p
+    for i, p in side.items():
+        m = FEATURE_POINTS[i].mirror
+        if m and m not in side_any:
+            side_any[m] = p
+    shared = [i for i in FP_IDS if i in fu and i in side_any]
+    if len(shared) < 3:
+        raise InputError(f"only {len(shared)} points are marked in both views ({', '.join(shared) or 'none'})",
+                         where="side view", fix="mark at least three points seen in both photos, e.g. 9.3, 2.1, "
+                                                "3.7, 8.3, 9.15")
+
+    # Midline in the front photo: mean of the pair midpoints and midline points.
+    xs = [fu[i][0] for i in fu if FEATURE_POINTS[i].side == "C"]
+    xs += [0.5 * (fu[i][0] + fu[FEATURE_POINTS[i].mirror][0]) for i in fu
+           if FEATURE_POINTS[i].side == "L" and FEATURE_POINTS[i].mirror in fu]
+    x_mid = float(np.mean(xs))
+
+    if focal_px is None:
+        sf = ipd / ipd_px
+        X = {i: (p[0] - x_mid) * sf for i, p in fu.items()}
+        Yf = {i: -p[1] * sf for i, p in fu.items()}
+        a, b, resid = _fit_heights(shared, Yf, side_any)
+        ss = abs(a)
+        Z = {i: facing * p[0] * ss for i, p in side_any.items()}
+        Ys = {i: a * p[1] + b for i, p in side_any.items()}
+        scales = {"front": sf, "side": ss}
+    else:
+        X, Yf, Z, Ys, resid, scales = _perspective(front, side_any, generic, ipd, focal_px, front_size, side_size,
+                                                   roll, facing, visible, shared)
+    worst = max(shared, key=lambda i: abs(resid[i]))
+    if abs(resid[worst]) * 1000 > height_tol_mm:
+        top = sorted(shared, key=lambda i: -abs(resid[i]))[:3]
+        raise InputError("the heights of the points marked in both photos disagree: "
+                         + ", ".join(f"{i} by {resid[i] * 1000:+.1f} mm" for i in top),
+                         where="side view", fix=f"check those points (tolerance {height_tol_mm:g} mm); the two "
+                                                "photos must show the same neutral pose")
+
+    # Assemble: x from the front (0 on the midline), y from both, z from the side.
+    pts: dict[str, list] = {}
+    source: dict[str, str] = {}
+    for i in FP_IDS:
+        fp = FEATURE_POINTS[i]
+        x = X.get(i)
+        if x is None and fp.mirror in X:
+            x = -X[fp.mirror]
+        if fp.side == "C" and (i in X or i in side_any):
+            x = 0.0
+        ys = [v for v in (Yf.get(i), Ys.get(i) if i in side else None) if v is not None]
+        if not ys and fp.mirror and fp.mirror in Yf:
+            ys = [Yf[fp.mirror]]
+        if not ys and i in Ys:
+            ys = [Ys[i]]
+        z = Z.get(i)
+        pts[i] = [x, float(np.mean(ys)) if ys else None, z]
+        known = [v is not None for v in pts[i]]
+        if all(known):
+            source[i] = "front+side" if i in side else ("mirror" if i in fu else "side")
+        elif any(known):
+            source[i] = "front" if i in fu else "side"
+        else:
+            source[i] = "generic"
+
+    # Bring the free y/z origin to the generic head's, then fill what is missing from the
+    # generic head similarity-fitted to the complete points.
+    full = [i for i in FP_IDS if None not in pts[i] and i in generic.feature_points]
+    if len(full) < 4:
+        raise InputError(f"only {len(full)} points are known in 3D", fix="mark more points in both views")
+    g = {i: generic.fp_position(i) for i in generic.feature_points}
+    p_full = np.array([pts[i] for i in full], dtype=np.float64)
+    g_full = np.array([g[i] for i in full])
+    shift = np.r_[0.0, (g_full - p_full).mean(axis=0)[1:]]
+    for i in FP_IDS:
+        pts[i] = [None if v is None else v + shift[k] for k, v in enumerate(pts[i])]
+    sim = fit_similarity(g_full, p_full + shift)
+    out = {}
+    for i in FP_IDS:
+        if None in pts[i]:
+            if i not in g:
+                raise InputError(f"feature point {i} is marked in neither view and the generic head lacks it")
+            guess = sim(g[i][None])[0]
+            pts[i] = [guess[k] if v is None else v for k, v in enumerate(pts[i])]
+        if FEATURE_POINTS[i].side == "C":
+            pts[i][0] = 0.0
+        out[i] = np.array(pts[i], dtype=np.float64)
+    return Calibration(
+        points=out, source=source, roll_deg=float(np.degrees(roll)), metres_per_px=scales,
+        side_facing="right" if facing > 0 else "left", visible_side=visible,
+        height_residual_mm={i: float(resid[i] * 1000) for i in shared},
+        assumptions=dict(ipd_mm=float(ipd_mm), camera="orthographic" if focal_px is None
+                         else f"perspective, focal length {focal_px:g} px", height_tol_mm=height_tol_mm))
+
+
+def _fit_heights(shared, Yf, side_any):
+    """Straight line from side-photo rows to front heights (metres): a, b, residuals."""
+    v = np.array([side_any[i][1] for i in shared])
+    y = np.array([Yf[i] for i in shared])
+    A = np.c_[v, np.ones_like(v)]
+    (a, b), *_ = np.linalg.lstsq(A, y, rcond=None)
+    if not a < 0:
+        raise InputError("the side photo's heights run the wrong way against the front photo's",
+                         where="side view", fix="check that the side photo is upright and its points are the "
+                                                "same as the front photo's")
+    return a, b, {i: float(a * side_any[i][1] + b - Yf[i]) for i in shared}
+
+
+def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, facing, visible, shared):
+    """Alternate between the views with pinhole cameras; returns the same pieces as the
+    orthographic branch (X, Yf, Z, Ys, residuals, scales)."""
+    cf = (np.array(front_size, float) - 1) / 2
+    cs = (np.array(side_size, float) - 1) / 2
+    c, s = np.cos(roll), np.sin(roll)
+    rot = np.array([[c, -s], [s, c]])
+    # Normalised rays, roll removed about the principal point.
+    rf = {i: rot @ (p - cf) / f for i, p in front.items()}
+    rs = {i: (p - cs) / f for i, p in side_any.items()}
+    sigma = 1.0 if visible == "L" else -1.0  # side camera on +x (sees the left) or on -x
+    # Start with depth 0 everywhere; the front camera distance from the pupils' spread.
+    z = {i: 0.0 for i in set(rf) | set(rs)}
+    x = {i: 0.0 for i in set(rf) | set(rs)}
+    spread = np.linalg.norm(rf["3.5"] - rf["3.6"])
+    for _ in range(_PERSPECTIVE_ROUNDS):
+        z_eye = 0.5 * (z["3.5"] + z["3.6"])
+        dist_f = ipd / spread + z_eye  # camera z position; a point at depth z is dist_f - z away
+        X = {i: r[0] * (dist_f - z[i]) for i, r in rf.items()}
+        Yf = {i: -r[1] * (dist_f - z[i]) for i, r in rf.items()}
+        mids = [X[i] for i in X if FEATURE_POINTS[i].side == "C"]
+        mids += [0.5 * (X[i] + X[FEATURE_POINTS[i].mirror]) for i in X
+                 if FEATURE_POINTS[i].side == "L" and FEATURE_POINTS[i].mirror in X]
+        x0 = float(np.mean(mids))
+        X = {i: v - x0 for i, v in X.items()}
+        for i in X:
+            x[i] = X[i]
+        # Side heights: Yf = y0 - v (D - sigma x) with unknown y0 and D (linear least squares).
+        v = np.array([rs[i][1] for i in shared])
+        xv = np.array([sigma * x.get(i, 0.0) * (1 if i in side_any and FEATURE_POINTS[i].side in ("C", visible)
+                                                else -1) for i in shared])
+        y = np.array([Yf[i] for i in shared])
+        A = np.c_[np.ones_like(v), -v]
+        (y0, dist_s), *_ = np.linalg.lstsq(A, y - v * xv, rcond=None)
+        if not dist_s > 0:
+            raise InputError("the side photo's heights run the wrong way against the front photo's", where="side view",
+                             fix="check that the side photo is upright")
+
+        def depth_to_side(i):
+            xi = x.get(i, 0.0)
+            if FEATURE_POINTS[i].side not in ("C", visible):
+                xi = -xi  # the label came from the mirror partner on the visible side
+            return dist_s - sigma * xi
+
+        Z = {i: facing * r[0] * depth_to_side(i) for i, r in rs.items()}
+        Ys = {i: y0 - r[1] * depth_to_side(i) for i, r in rs.items()}
+        for i in Z:
+            z[i] = Z[i]
+    resid = {i: float(Ys[i] - Yf[i]) for i in shared}
+    scales = {"front": float(ipd / (spread * f)), "side": float((dist_s - sigma * x["3.5"]) / f)}
+    return X, Yf, Z, Ys, resid, scales

@@ -1,0 +1,130 @@
+"""3D feature points from two synthetic photos with known cameras."""
+
+import numpy as np
+import pytest
+
+from mpeg4 import FEATURE_POINTS, FP_IDS, FeaturePointBinding, Head, InputError, Part
+from recon.calibrate import calibrate
+
+
+def _symmetric_points(rng):
+    pts = {}
+    for i in FP_IDS:
+        fp = FEATURE_POINTS[i]
+        if fp.side == "R":
+            continue
+        p = np.array([rng.uniform(0.01, 0.07), rng.uniform(-0.1, 0.1), rng.uniform(0.0, 0.1)])
+        if fp.side == "C":
+            p[0] = 0.0
+        pts[i] = p
+        if fp.mirror:
+            pts[fp.mirror] = p * [-1, 1, 1]
+    pts["3.5"], pts["3.6"] = np.array([0.0315, 0.0, 0.08]), np.array([-0.0315, 0.0, 0.08])
+    return pts
+
+
+@pytest.fixture(scope="module")
+def scene():
+    rng = np.random.default_rng(0)
+    generic_pts = _symmetric_points(rng)
+    ids = list(generic_pts)
+    skin = Part("skin", np.array([generic_pts[i] for i in ids]), np.zeros((0, 3), int))
+    generic = Head([skin], {i: FeaturePointBinding.at_vertex("skin", k) for k, i in enumerate(ids)})
+    # The person: the generic points stretched, moved and perturbed (symmetrically).
+    truth = {}
+    for i, p in generic_pts.items():
+        if FEATURE_POINTS[i].side == "R":
+            continue
+        q = p * [1.06, 0.95, 1.03] + [0, 0.02, -0.01] + rng.normal(0, 0.002, 3) * [p[0] != 0, 1, 1]
+        truth[i] = q
+        if FEATURE_POINTS[i].mirror:
+            truth[FEATURE_POINTS[i].mirror] = q * [-1, 1, 1]
+    return generic, truth
+
+
+def _front(truth, k=4000.0, roll_deg=0.0, f=None, dist=0.6, size=(1000, 1200)):
+    c, s = np.cos(np.radians(roll_deg)), np.sin(np.radians(roll_deg))
+    out = {}
+    for i, p in truth.items():
+        if FEATURE_POINTS[i].front == "N":
+            continue
+        scale = k if f is None else f / (dist - p[2])
+        u, v = p[0] * scale, -p[1] * scale
+        # Roll: the face's left side (image right) goes up for positive roll.
+        u, v = c * u + s * v, -s * u + c * v
+        out[i] = np.array([(size[0] - 1) / 2 + u, (size[1] - 1) / 2 + v])
+    return out
+
+
+def _side(truth, k=3000.0, facing_left=True, f=None, dist=0.6, size=(900, 1000)):
+    out = {}
+    for i, p in truth.items():
+        fp = FEATURE_POINTS[i]
+        if fp.side_view == "N" or fp.side not in ("C", "L" if facing_left else "R"):
+            continue
+        depth = dist - p[0] if facing_left else dist + p[0]
+        scale = k if f is None else f / depth
+        u = (-p[2] if facing_left else p[2]) * scale
+        out[i] = np.array([(size[0] - 1) / 2 + u, (size[1] - 1) / 2 - (p[1] - 0.01) * scale])
+    return out
+
+
+def _error(cal, truth, sources=("front+side", "mirror")):
+    ids = [i for i in truth if cal.source[i] in sources]
+    d = np.array([cal.points[i] - truth[i] for i in ids])
+    d -= d.mean(axis=0) * [0, 1, 1]  # the y/z origin is the generic head's, not the truth's
+    return np.abs(d).max(), ids
+
+
+@pytest.mark.parametrize("facing_left", [True, False])
+@pytest.mark.parametrize("roll", [0.0, 4.0])
+def test_orthographic_points_are_exact(scene, facing_left, roll):
+    generic, truth = scene
+    ipd = np.linalg.norm(truth["3.5"] - truth["3.6"]) * 1000
+    cal = calibrate(_front(truth, roll_deg=roll), _side(truth, facing_left=facing_left), generic, ipd_mm=ipd)
+    err, ids = _error(cal, truth)
+    assert len(ids) > 40 and err < 1e-9
+    assert abs(cal.roll_deg - roll) < 1e-9
+    assert cal.side_facing == ("left" if facing_left else "right")
+    assert cal.visible_side == ("L" if facing_left else "R")
+    assert all(abs(cal.points[i][0]) < 1e-12 for i in FP_IDS if FEATURE_POINTS[i].side == "C")
+    assert len(cal.points) == 84
+
+
+def test_perspective_points_are_exact(scene):
+    generic, truth = scene
+    ipd = np.linalg.norm(truth["3.5"] - truth["3.6"]) * 1000
+    cal = calibrate(_front(truth, f=2400.0), _side(truth, f=2400.0), generic, ipd_mm=ipd, focal_px=2400.0,
+                    front_size=(1000, 1200), side_size=(900, 1000))
+    err, _ = _error(cal, truth)
+    assert err < 1e-6
+    # The orthographic model on the same photos is measurably worse.
+    ortho = calibrate(_front(truth, f=2400.0), _side(truth, f=2400.0), generic, ipd_mm=ipd, height_tol_mm=50)
+    assert _error(ortho, truth)[0] > 100 * err
+
+
+def test_noise_gives_proportionate_errors(scene):
+    generic, truth = scene
+    rng = np.random.default_rng(1)
+    noisy = lambda view: {i: p + rng.normal(0, 1.0, 2) for i, p in view.items()}  # noqa: E731
+    ipd = np.linalg.norm(truth["3.5"] - truth["3.6"]) * 1000
+    cal = calibrate(noisy(_front(truth)), noisy(_side(truth)), generic, ipd_mm=ipd)
+    err, _ = _error(cal, truth)
+    assert err < 0.0015  # 1 px is 0.25-0.33 mm here, the pupils' noise scales everything a little
+
+
+def test_bad_input(scene):
+    generic, truth = scene
+    front, side = _front(truth), _side(truth)
+    with pytest.raises(InputError, match=r"front view: the pupils 3.6 are not marked"):
+        calibrate({k: v for k, v in front.items() if k != "3.6"}, side, generic)
+    bad = dict(side, **{"2.1": side["2.1"] + [0, 60]})
+    with pytest.raises(InputError, match=r"heights .* disagree: 2.1 by"):
+        calibrate(front, bad, generic)
+    with pytest.raises(InputError, match=r"9.9 at .* outside the 1000x1200 image"):
+        calibrate(dict(front, **{"9.9": [2000, 10]}), side, generic, front_size=(1000, 1200))
+    with pytest.raises(InputError, match="'12.1'"):
+        calibrate(dict(front, **{"12.1": [1, 1]}), side, generic)
+    swapped = dict(front, **{"3.5": front["3.6"], "3.6": front["3.5"]})
+    with pytest.raises(InputError, match="swap 3.5 and 3.6"):
+        calibrate(swapped, side, generic)
