@@ -1,0 +1,484 @@
+"""glTF 2.0 binary (GLB) export and import of heads, with pygltflib.
+
+Layout of a head file:
+
+- one scene whose root node ``head`` carries the mesh ``head``: one primitive per part,
+  in the head's part order; parts with a rotation centre (the eyeballs) are child nodes of
+  their own, translated to the centre, with vertices stored relative to it, so turning the
+  node turns the eye about its centre;
+- one material per part (base colour, PNG base-colour texture when textured,
+  double-sided); texture coordinates are stored as (u, 1 − t) because glTF puts v = 0 at
+  the top of the image and this project puts t = 0 at the bottom;
+- morph targets: the head's own (e.g. ARKit-named) and the Facial Animation Tables'
+  mesh deformations (:func:`mpeg4.fat.fat_to_morph_targets`), as sparse accessors, named
+  in ``mesh.extras.targetNames``; a primitive a target leaves still is given an accessor
+  without data (zeros, as the format allows);
+- ``extras["mpeg4"]`` on the root node: part list, feature point bindings (and positions,
+  for people reading the JSON), FAPU in metres, which targets stand for which FAP interval,
+  the FAT transforms, and the head's metadata.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..catalogue import FP_IDS
+from ..errors import InputError, require_file
+from ..fat import FAT, FaceDefTable, FaceDefTransform, MorphSpec, fat_from_morph_targets, fat_to_morph_targets
+from ..head import FeaturePointBinding, Head, Part, SparseDisplacement
+from .atomic import atomic_write
+
+__all__ = ["write_glb", "read_glb", "FORMAT_VERSION"]
+
+#: Version of the ``extras["mpeg4"]`` layout.
+FORMAT_VERSION = 1
+
+_FLOAT, _UINT, _USHORT, _UBYTE = 5126, 5125, 5123, 5121
+_ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
+_DTYPES = {5126: np.float32, 5125: np.uint32, 5123: np.uint16, 5121: np.uint8, 5122: np.int16, 5120: np.int8}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
+
+
+def _normals(v: np.ndarray, t: np.ndarray) -> np.ndarray:
+    from ..render import vertex_normals
+
+    return vertex_normals(v, t)
+
+
+class _Writer:
+    def __init__(self):
+        import pygltflib as g
+
+        self.g = g
+        self.gltf = g.GLTF2(asset=g.Asset(version="2.0", generator="mpeg4-heads"))
+        self.blob = bytearray()
+
+    def view(self, data: bytes, target: int | None = None) -> int:
+        g = self.g
+        self.blob += b"\0" * (-len(self.blob) % 4)
+        view = g.BufferView(buffer=0, byteOffset=len(self.blob), byteLength=len(data))
+        if target is not None:
+            view.target = target
+        self.blob += data
+        self.gltf.bufferViews.append(view)
+        return len(self.gltf.bufferViews) - 1
+
+    def accessor(self, array: np.ndarray, kind: str, target: int | None = None, minmax: bool = False) -> int:
+        g = self.g
+        array = np.ascontiguousarray(array)
+        ctype = {np.float32: _FLOAT, np.uint32: _UINT, np.uint16: _USHORT}[array.dtype.type]
+        acc = g.Accessor(bufferView=self.view(array.tobytes(), target), componentType=ctype,
+                         count=len(array), type=kind)
+        if minmax:
+            acc.min = array.reshape(len(array), -1).min(axis=0).tolist()
+            acc.max = array.reshape(len(array), -1).max(axis=0).tolist()
+        self.gltf.accessors.append(acc)
+        return len(self.gltf.accessors) - 1
+
+    def sparse_target(self, n: int, d: SparseDisplacement | None) -> int:
+        """A VEC3 accessor of n displacements, zeros except ``d`` (stored sparse)."""
+        g = self.g
+        acc = g.Accessor(componentType=_FLOAT, count=n, type="VEC3", min=[0.0, 0.0, 0.0], max=[0.0, 0.0, 0.0])
+        acc.byteOffset = None  # no bufferView: the format forbids an offset
+        if d is not None and len(d.indices):
+            vec = d.vectors.astype(np.float32)
+            lo, hi = vec.min(axis=0), vec.max(axis=0)
+            if len(d.indices) < n:  # the vertices not listed are zeros
+                lo, hi = np.minimum(lo, 0), np.maximum(hi, 0)
+            acc.min, acc.max = lo.tolist(), hi.tolist()
+            acc.sparse = g.Sparse(
+                count=len(d.indices),
+                indices=g.AccessorSparseIndices(bufferView=self.view(d.indices.astype(np.uint32).tobytes()),
+                                                componentType=_UINT),
+                values=g.AccessorSparseValues(bufferView=self.view(vec.tobytes())))
+        self.gltf.accessors.append(acc)
+        return len(self.gltf.accessors) - 1
+
+
+def _png(image: np.ndarray) -> bytes:
+    import cv2
+
+    img = np.ascontiguousarray(image[..., :3][..., ::-1])
+    ok, data = cv2.imencode(".png", img)
+    if not ok:
+        raise RuntimeError("PNG encoding failed")
+    return data.tobytes()
+
+
+def _transform_dict(key, t: FaceDefTransform) -> dict:
+    return dict(fap=key[0], high_level=key[1], part=t.part, kind=t.kind, centre=t.centre.tolist(),
+                axis=t.axis.tolist(), amount=np.asarray(t.amount, dtype=float).tolist())
+
+
+def write_glb(head: Head, path: str | os.PathLike) -> str:
+    """Write ``head`` as a GLB file (atomically) and return the path.
+
+    Parameters
+    ----------
+    head : Head
+    path : str or os.PathLike
+        Destination, normally ``*.glb``.
+    """
+    w = _Writer()
+    g, gltf = w.g, w.gltf
+    targets: dict[str, Mapping[str, SparseDisplacement]] = dict(head.morph_targets)
+    specs: list[MorphSpec] = []
+    if head.fat is not None and len(head.fat):
+        fat_targets, specs = fat_to_morph_targets(head.fat, head.fapu)
+        clash = sorted(set(fat_targets) & set(targets))
+        if clash:
+            raise InputError(f"morph target names {clash[:3]} are used both by the head and by its animation tables",
+                             fix="rename the head's own morph targets")
+        targets.update(fat_targets)
+    names = list(targets)
+    gltf.samplers.append(g.Sampler(magFilter=9729, minFilter=9987, wrapS=33071, wrapT=33071))
+
+    groups: list[tuple[str, list[str], np.ndarray | None]] = [("head", [], None)]
+    for name, part in head.parts.items():
+        if part.centre is None:
+            groups[0][1].append(name)
+        else:
+            groups.append((name, [name], part.centre))
+    part_info = []
+    gltf.nodes.append(g.Node(name="head", children=[]))
+    for gi, (mesh_name, part_names, centre) in enumerate(groups):
+        if not part_names:
+            continue
+        if gi == 0:
+            mesh_targets = names
+        else:
+            mesh_targets = [t for t in names if any(p in targets[t] for p in part_names)]
+        mesh = g.Mesh(name=mesh_name, primitives=[])
+        for pname in part_names:
+            part = head.parts[pname]
+            v = part.vertices - (0 if centre is None else centre)
+            attrs = g.Attributes(POSITION=w.accessor(v.astype(np.float32), "VEC3", _ARRAY_BUFFER, minmax=True),
+                                 NORMAL=w.accessor(_normals(v, part.triangles).astype(np.float32), "VEC3", _ARRAY_BUFFER))
+            if part.uv is not None:
+                uv = np.c_[part.uv[:, 0], 1.0 - part.uv[:, 1]].astype(np.float32)
+                attrs.TEXCOORD_0 = w.accessor(uv, "VEC2", _ARRAY_BUFFER)
+            idx = part.triangles.reshape(-1)
+            idx = idx.astype(np.uint16 if part.n_vertices < 65535 else np.uint32)
+            material = g.Material(name=pname, doubleSided=True, pbrMetallicRoughness=g.PbrMetallicRoughness(
+                baseColorFactor=[*part.colour, 1.0], metallicFactor=0.0, roughnessFactor=0.6))
+            if part.texture is not None:
+                gltf.images.append(g.Image(bufferView=w.view(_png(part.texture)), mimeType="image/png", name=pname))
+                gltf.textures.append(g.Texture(sampler=0, source=len(gltf.images) - 1))
+                material.pbrMetallicRoughness.baseColorTexture = g.TextureInfo(index=len(gltf.textures) - 1)
+            gltf.materials.append(material)
+            prim = g.Primitive(attributes=attrs, indices=w.accessor(idx, "SCALAR", _ELEMENT_ARRAY_BUFFER),
+                               material=len(gltf.materials) - 1, mode=4)
+            if mesh_targets:
+                prim.targets = [{"POSITION": w.sparse_target(part.n_vertices, targets[t].get(pname))}
+                                for t in mesh_targets]
+            mesh.primitives.append(prim)
+            part_info.append(dict(name=pname, mesh=mesh_name, colour=list(part.colour),
+                                  centre=None if centre is None else centre.tolist()))
+        if mesh_targets:
+            mesh.extras = {"targetNames": mesh_targets}
+            mesh.weights = [0.0] * len(mesh_targets)
+        gltf.meshes.append(mesh)
+        if gi == 0:
+            gltf.nodes[0].mesh = len(gltf.meshes) - 1
+        else:
+            gltf.nodes.append(g.Node(name=mesh_name, mesh=len(gltf.meshes) - 1, translation=centre.tolist()))
+            gltf.nodes[0].children.append(len(gltf.nodes) - 1)
+    if not gltf.nodes[0].children:
+        gltf.nodes[0].children = None
+
+    order = list(head.parts)
+    part_info.sort(key=lambda info: order.index(info["name"]))  # the head's part order
+    pos = {}
+    fps = {}
+    for i in FP_IDS:
+        if i in head.feature_points:
+            b = head.feature_points[i]
+            fps[i] = dict(part=b.part, vertices=list(b.vertices), weights=list(b.weights),
+                          position=np.round(head.fp_position(i), 9).tolist())
+            pos[i] = head.fp_position(i)
+    try:
+        fapu = head.fapu.as_dict()
+    except InputError:
+        fapu = None
+    extras = dict(format="mpeg4-heads", version=FORMAT_VERSION, units="m", parts=part_info, feature_points=fps,
+                  fapu=fapu, morph_targets=list(head.morph_targets),
+                  fat=None if head.fat is None else dict(
+                      targets=[s.as_dict() for s in specs],
+                      transforms=[_transform_dict(k, t) for k, tab in sorted(head.fat.items()) for t in tab.transforms],
+                      tables=[list(k) for k in sorted(head.fat)]),
+                  metadata=head.metadata)
+    gltf.nodes[0].extras = {"mpeg4": extras}
+    gltf.scenes.append(g.Scene(nodes=[0]))
+    gltf.scene = 0
+    gltf.buffers.append(g.Buffer(byteLength=len(w.blob)))
+    gltf.set_binary_blob(bytes(w.blob))
+    data = b"".join(gltf.save_to_bytes())
+    with atomic_write(path, "wb") as f:
+        f.write(data)
+    return os.fspath(path)
+
+
+# --- reading -------------------------------------------------------------------------
+
+class _Reader:
+    def __init__(self, path: str):
+        import pygltflib as g
+
+        self.path = path
+        try:
+            self.gltf = g.GLTF2().load(path)
+        except Exception as e:
+            raise InputError(f"not a readable glTF/GLB file ({e.__class__.__name__}: {str(e)[:120]})", where=path,
+                             fix="export the head as glTF 2.0 binary (.glb)") from None
+        if self.gltf is None:
+            raise InputError("not a readable glTF/GLB file", where=path, fix="export the head as glTF 2.0 (.glb)")
+        self.buffers = []
+        for k, buf in enumerate(self.gltf.buffers):
+            if buf.uri is None:
+                data = self.gltf.binary_blob()
+            else:
+                try:
+                    data = self.gltf.get_data_from_buffer_uri(buf.uri)
+                except Exception:
+                    base = os.path.dirname(path)
+                    p = os.path.join(base, buf.uri)
+                    if not os.path.exists(p):
+                        raise InputError(f"buffer {k} refers to '{buf.uri}', which is missing", where=path,
+                                         fix="keep the .bin file beside the .gltf, or use .glb") from None
+                    with open(p, "rb") as f:
+                        data = f.read()
+            if data is None or len(data) < buf.byteLength:
+                raise InputError(f"buffer {k} holds {0 if data is None else len(data)} bytes, "
+                                 f"the file says {buf.byteLength}", where=path, fix="the file is truncated; export it again")
+            self.buffers.append(bytes(data))
+
+    def view_bytes(self, index: int) -> bytes:
+        v = self.gltf.bufferViews[index]
+        start = v.byteOffset or 0
+        return self.buffers[v.buffer][start:start + v.byteLength]
+
+    def accessor(self, index: int) -> np.ndarray:
+        a = self.gltf.accessors[index]
+        width = _WIDTH[a.type]
+        dtype = np.dtype(_DTYPES[a.componentType])
+        if a.bufferView is None:
+            out = np.zeros((a.count, width), dtype)
+        else:
+            view = self.gltf.bufferViews[a.bufferView]
+            raw = self.view_bytes(a.bufferView)
+            stride = view.byteStride or dtype.itemsize * width
+            offset = a.byteOffset or 0
+            need = offset + stride * (a.count - 1) + dtype.itemsize * width if a.count else 0
+            if need > len(raw):
+                raise InputError(f"accessor {index} runs past the end of its data", where=self.path,
+                                 fix="the file is truncated or damaged; export it again")
+            arr = np.lib.stride_tricks.as_strided(np.frombuffer(raw, np.uint8, offset=offset),
+                                                  shape=(a.count, width * dtype.itemsize), strides=(stride, 1))
+            out = np.ascontiguousarray(arr).view(dtype).reshape(a.count, width).copy()
+        if a.sparse is not None and a.sparse.count:
+            s = a.sparse
+            idx_dtype = _DTYPES[s.indices.componentType]
+            idx = np.frombuffer(self.view_bytes(s.indices.bufferView), idx_dtype,
+                                count=s.count, offset=s.indices.byteOffset or 0)
+            vals = np.frombuffer(self.view_bytes(s.values.bufferView), dtype, count=s.count * width,
+                                 offset=s.values.byteOffset or 0).reshape(s.count, width)
+            out[idx.astype(np.int64)] = vals
+        if a.normalized and dtype.kind in "ui":
+            out = out.astype(np.float64) / np.iinfo(dtype).max
+        return out if width > 1 else out[:, 0]
+
+    def sparse_target(self, index: int) -> SparseDisplacement:
+        a = self.gltf.accessors[index]
+        if a.bufferView is None:
+            if a.sparse is None or not a.sparse.count:
+                return SparseDisplacement(np.zeros(0, np.int64), np.zeros((0, 3)))
+            s = a.sparse
+            idx = np.frombuffer(self.view_bytes(s.indices.bufferView), _DTYPES[s.indices.componentType],
+                                count=s.count, offset=s.indices.byteOffset or 0).astype(np.int64)
+            vals = np.frombuffer(self.view_bytes(s.values.bufferView), np.float32, count=s.count * 3,
+                                 offset=s.values.byteOffset or 0).reshape(-1, 3)
+            return SparseDisplacement(idx, vals.astype(np.float64))
+        return SparseDisplacement.from_dense(self.accessor(index).astype(np.float64))
+
+    def texture_of(self, material_index) -> np.ndarray | None:
+        import cv2
+
+        if material_index is None:
+            return None
+        m = self.gltf.materials[material_index]
+        pbr = m.pbrMetallicRoughness
+        if pbr is None or pbr.baseColorTexture is None:
+            return None
+        img = self.gltf.images[self.gltf.textures[pbr.baseColorTexture.index].source]
+        if img.bufferView is not None:
+            data = self.view_bytes(img.bufferView)
+        elif img.uri:
+            if img.uri.startswith("data:"):
+                data = self.gltf.get_data_from_buffer_uri(img.uri)
+            else:
+                with open(os.path.join(os.path.dirname(self.path), img.uri), "rb") as f:
+                    data = f.read()
+        else:
+            return None
+        decoded = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+        return None if decoded is None else np.ascontiguousarray(decoded[..., ::-1])
+
+    def colour_of(self, material_index) -> tuple[float, float, float]:
+        if material_index is None:
+            return (0.8, 0.8, 0.8)
+        pbr = self.gltf.materials[material_index].pbrMetallicRoughness
+        if pbr is None or pbr.baseColorFactor is None:
+            return (1.0, 1.0, 1.0)
+        return tuple(float(c) for c in pbr.baseColorFactor[:3])
+
+    def primitive_geometry(self, prim):
+        if prim.attributes.POSITION is None:
+            raise InputError("a mesh primitive has no POSITION attribute", where=self.path)
+        v = self.accessor(prim.attributes.POSITION).astype(np.float64)
+        if prim.mode not in (None, 4):
+            raise InputError(f"a primitive uses drawing mode {prim.mode}, not triangles", where=self.path,
+                             fix="export the mesh triangulated")
+        if prim.indices is None:
+            t = np.arange(len(v), dtype=np.int64).reshape(-1, 3)
+        else:
+            t = self.accessor(prim.indices).astype(np.int64).reshape(-1, 3)
+        uv = None
+        if prim.attributes.TEXCOORD_0 is not None:
+            raw = self.accessor(prim.attributes.TEXCOORD_0).astype(np.float64)
+            uv = np.c_[raw[:, 0], 1.0 - raw[:, 1]]
+        return v, t, uv
+
+
+def _node_matrix(node) -> np.ndarray:
+    m = np.eye(4)
+    if node.matrix is not None:
+        return np.array(node.matrix, dtype=np.float64).reshape(4, 4).T  # column-major in the file
+    if node.scale is not None:
+        m = np.diag([*node.scale, 1.0]) @ m
+    if node.rotation is not None:
+        x, y, z, w = node.rotation
+        r = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                      [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        rm = np.eye(4)
+        rm[:3, :3] = r
+        m = rm @ m
+    if node.translation is not None:
+        t = np.eye(4)
+        t[:3, 3] = node.translation
+        m = t @ m
+    return m
+
+
+def read_glb(path: str | os.PathLike) -> Head:
+    """Read a head from a GLB (or glTF) file.
+
+    Files written by :func:`write_glb` come back whole (parts, feature points, morph
+    targets, Facial Animation Tables, metadata). Other glTF files load as one part per
+    primitive (node transforms applied, names from the mesh or material), without feature
+    points.
+    """
+    path = require_file(path, "head file")
+    r = _Reader(path)
+    gltf = r.gltf
+    ext = None
+    for node in gltf.nodes:
+        if isinstance(node.extras, dict) and isinstance(node.extras.get("mpeg4"), dict):
+            ext = node.extras["mpeg4"]
+            break
+    if ext is not None:
+        return _read_own(r, ext)
+    return _read_foreign(r)
+
+
+def _read_own(r: _Reader, ext: dict) -> Head:
+    gltf = r.gltf
+    if ext.get("version", 0) > FORMAT_VERSION:
+        raise InputError(f"the file's head data has version {ext.get('version')}; this reader knows up to "
+                         f"{FORMAT_VERSION}", where=r.path, fix="update this tool")
+    meshes = {m.name: (k, m) for k, m in enumerate(gltf.meshes)}
+    nodes = {n.name: n for n in gltf.nodes}
+    parts, targets = {}, {}
+    cursor = {}
+    for info in ext["parts"]:
+        k, mesh = meshes[info["mesh"]]
+        j = cursor.get(info["mesh"], 0)
+        cursor[info["mesh"]] = j + 1
+        prim = mesh.primitives[j]
+        v, t, uv = r.primitive_geometry(prim)
+        centre = None if info.get("centre") is None else np.asarray(info["centre"], dtype=np.float64)
+        if centre is not None:
+            node = nodes.get(info["mesh"])
+            if node is not None and node.translation is not None:
+                centre = np.asarray(node.translation, dtype=np.float64)
+            v = v + centre
+        texture = r.texture_of(prim.material)
+        parts[info["name"]] = Part(info["name"], v, t, uv=uv, texture=texture, colour=tuple(info["colour"]),
+                                   centre=centre)
+        names = (mesh.extras or {}).get("targetNames", [])
+        for name, tgt in zip(names, prim.targets or []):
+            d = r.sparse_target(tgt["POSITION"])
+            if len(d.indices):
+                targets.setdefault(name, {})[info["name"]] = d
+            else:
+                targets.setdefault(name, {})
+    fps = {i: FeaturePointBinding(b["part"], tuple(b["vertices"]), tuple(b["weights"]))
+           for i, b in ext.get("feature_points", {}).items()}
+    own = {n: targets.get(n, {}) for n in ext.get("morph_targets", [])}
+    head = Head(parts, fps, own, metadata=ext.get("metadata") or {})
+    fat_ext = ext.get("fat")
+    if fat_ext is not None:
+        specs = [MorphSpec(**s) for s in fat_ext["targets"]]
+        transforms = FAT()
+        for k in fat_ext.get("tables", []):
+            transforms.add(FaceDefTable(int(k[0]), int(k[1])))
+        for t in fat_ext["transforms"]:
+            key = (t["fap"], t["high_level"])
+            if key not in transforms:
+                transforms.add(FaceDefTable(*key))
+            transforms[key].transforms.append(FaceDefTransform(t["part"], t["kind"], t["centre"], t["axis"],
+                                                               t["amount"] if t["kind"] == "rotation" else t["amount"]))
+        fat_targets = {s.target: targets.get(s.target, {}) for s in specs}
+        fat = fat_from_morph_targets(fat_targets, specs, head.fapu, transforms) if specs else FAT()
+        for key, table in transforms.items():
+            if key not in fat:
+                fat.add(FaceDefTable(table.fap, table.high_level, [], list(table.transforms)))
+        head.fat = fat
+    return head
+
+
+def _read_foreign(r: _Reader) -> Head:
+    gltf = r.gltf
+    scene = gltf.scenes[gltf.scene or 0] if gltf.scenes else None
+    roots = scene.nodes if scene is not None else list(range(len(gltf.nodes)))
+    parts: dict[str, Part] = {}
+
+    def visit(index, parent):
+        node = gltf.nodes[index]
+        m = parent @ _node_matrix(node)
+        if node.mesh is not None:
+            mesh = gltf.meshes[node.mesh]
+            for j, prim in enumerate(mesh.primitives):
+                v, t, uv = r.primitive_geometry(prim)
+                v = v @ m[:3, :3].T + m[:3, 3]
+                mat_name = gltf.materials[prim.material].name if prim.material is not None else None
+                base = (mesh.name or mat_name or node.name or "part").replace(" ", "_")
+                if len(mesh.primitives) > 1 and mat_name:
+                    base = mat_name.replace(" ", "_")
+                name = "skin" if not parts and base in ("head", "part") else base
+                k = 2
+                while name in parts:
+                    name, k = f"{base}_{k}", k + 1
+                parts[name] = Part(name, v, t, uv=uv, texture=r.texture_of(prim.material),
+                                   colour=r.colour_of(prim.material))
+        for c in node.children or []:
+            visit(c, m)
+
+    for root in roots:
+        visit(root, np.eye(4))
+    if not parts or not any(len(p.triangles) for p in parts.values()):
+        raise InputError("the file has no triangle meshes", where=r.path, fix="export the head as a triangle mesh")
+    return Head(parts, metadata={"source": os.path.basename(r.path)})

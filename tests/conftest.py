@@ -1,0 +1,35 @@
+"""Shared fixtures: the Khronos glTF validator, the ICT FaceKit test data."""
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+ICT_NPZ = ROOT.parent / "shared" / "data" / "ict_facekit" / "ict_facekit.npz"
+
+
+@pytest.fixture(scope="session")
+def validate_gltf():
+    """A function path → Khronos validator report (dict); skips when the validator is absent."""
+    node = shutil.which("node")
+    if node is None or not (ROOT / "node_modules" / "gltf-validator").is_dir():
+        pytest.skip("the Khronos glTF validator is not installed (run: npm ci)")
+
+    def run(path):
+        out = subprocess.run([node, str(ROOT / "tests" / "gltf_validate.js"), str(path)], cwd=ROOT,
+                             capture_output=True, text=True, timeout=120)
+        assert out.returncode == 0, out.stderr
+        return json.loads(out.stdout)
+
+    return run
+
+
+@pytest.fixture(scope="session")
+def ict_npz():
+    """Path of the ICT FaceKit data; skips when ../shared/data is absent."""
+    if not ICT_NPZ.exists():
+        pytest.skip(f"ICT FaceKit test data not found at {ICT_NPZ}")
+    return ICT_NPZ
