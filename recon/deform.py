@@ -198,6 +198,14 @@ def deform_head(head: Head, targets: Mapping[str, np.ndarray], method: str = "df
     if len(ids) < 4:
         raise InputError(f"only {len(ids)} target feature points; the deformation needs at least 4")
     rest = np.array([head.fp_position(i) for i in ids])
+    # Points bound to the same place on the head (11.5 on 11.4 when the head has no hair)
+    # cannot steer it two ways: the first one in catalogue order steers.
+    from scipy.spatial import cKDTree
+
+    dup = {j for _, j in cKDTree(rest).query_pairs(1e-6)}  # pairs (i, j) have i < j
+    skipped = [ids[k] for k in sorted(dup)]
+    keep = [k for k in range(len(ids)) if k not in dup]
+    ids, rest = [ids[k] for k in keep], rest[keep]
     goal = np.array([np.asarray(targets[i], dtype=np.float64).reshape(3) for i in ids])
     if not np.isfinite(goal).all():
         bad = [i for i, g in zip(ids, goal) if not np.isfinite(g).all()]
@@ -236,5 +244,6 @@ def deform_head(head: Head, targets: Mapping[str, np.ndarray], method: str = "df
         else:
             part.vertices = moved
     out.metadata = dict(out.metadata, deformation=dict(method=method, far_field=far_field,
-                                                       control_points=len(ids), bounding_points=len(box)))
+                                                       control_points=len(ids), bounding_points=len(box),
+                                                       coincident_points_skipped=skipped))
     return out
