@@ -1,0 +1,308 @@
+"""MPEG-4 ``.fap`` text streams: reading, writing, describing.
+
+Layout (reference section 6)::
+
+    # comment lines start with '#', anywhere
+    <version> <name> <fps> <frame count>        header, once
+    <m1> ... <m68>                              mask: one 0/1 flag per FAP 1..68
+    <frame> <values of the masked FAPs, in FAP order>
+    ...                                         (mask line + value line per frame)
+
+A masked FAP 1 (viseme) contributes 4 numbers (select1, select2, blend, def), a masked
+FAP 2 (expression) 6 (select1, intensity1, select2, intensity2, init_face, def); every other
+FAP one value in FAPU (or AU for rotations).
+
+The reader is tolerant of what real files do: float values, comment lines anywhere, blank
+lines, tabs, CRLF line ends, frames with no FAP set, frame numbers starting at 1 (or any
+increasing numbering), header versions 2.0/2.1/2.2, a file path as the name, and a frame
+count in the header that disagrees with the frames present (the frames win; the header's
+count is kept in ``declared_frames``). Anything else is an error naming the line.
+
+An unmasked FAP is *unset* (NaN) in :attr:`FapStream.values`; :meth:`FapStream.held` gives the
+common player reading, each FAP keeping its last value (0 before its first).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..catalogue import EXPRESSIONS, FAPS, VISEMES
+from ..errors import InputError, require_file
+from .atomic import atomic_write
+
+__all__ = ["FapStream", "parse_fap", "read_fap", "format_fap", "write_fap", "describe_fap", "N_FAPS"]
+
+N_FAPS = 68
+_WIDTH = {1: 4, 2: 6}  # numbers contributed by FAPs 1 and 2
+
+
+@dataclass
+class FapStream:
+    """A sequence of FAP frames.
+
+    Attributes
+    ----------
+    fps : float
+        Frames per second.
+    frame_numbers : (F,) int64
+        As written in the file (increasing; need not start at 0 or be contiguous).
+    values : (F, 68) float64
+        FAP k in column k − 1 (FAPU or AU); NaN where the frame does not set it. Columns 0
+        and 1 (FAPs 1 and 2) are unused: see ``viseme`` and ``expression``.
+    viseme : (F, 4) float64
+        select1, select2, blend (0..63), def; NaN rows where FAP 1 is not set.
+    expression : (F, 6) float64
+        select1, intensity1, select2, intensity2, init_face, def; NaN where FAP 2 is unset.
+    name : str
+        Sequence name from the header.
+    version : str
+        Header version string (kept on writing).
+    declared_frames : int or None
+        The header's frame count, when it disagreed with the frames read.
+    """
+
+    fps: float
+    frame_numbers: np.ndarray
+    values: np.ndarray
+    viseme: np.ndarray = None
+    expression: np.ndarray = None
+    name: str = "stream"
+    version: str = "2.1"
+    declared_frames: int | None = None
+
+    def __post_init__(self):
+        self.frame_numbers = np.asarray(self.frame_numbers, dtype=np.int64).reshape(-1)
+        n = len(self.frame_numbers)
+        self.values = np.asarray(self.values, dtype=np.float64).reshape(n, N_FAPS)
+        self.viseme = np.full((n, 4), np.nan) if self.viseme is None else np.asarray(self.viseme, float).reshape(n, 4)
+        self.expression = (np.full((n, 6), np.nan) if self.expression is None
+                           else np.asarray(self.expression, float).reshape(n, 6))
+        if not self.fps > 0:
+            raise InputError(f"frame rate {self.fps} is not positive", fix="give frames per second, e.g. 25")
+
+    @classmethod
+    def from_values(cls, values, fps: float = 25.0, **kw) -> FapStream:
+        """A stream from a (F, 68) array (NaN = unset), frames numbered from 0."""
+        values = np.asarray(values, dtype=np.float64)
+        return cls(fps, np.arange(len(values)), values, **kw)
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.frame_numbers)
+
+    @property
+    def duration(self) -> float:
+        """Seconds from the first frame to one frame past the last."""
+        if not self.n_frames:
+            return 0.0
+        return float(self.frame_numbers[-1] - self.frame_numbers[0] + 1) / self.fps
+
+    @property
+    def mask(self) -> np.ndarray:
+        """(F, 68) bool: which FAPs each frame sets."""
+        m = ~np.isnan(self.values)
+        m[:, 0] = ~np.isnan(self.viseme[:, 0])
+        m[:, 1] = ~np.isnan(self.expression[:, 0])
+        return m
+
+    def held(self) -> FapStream:
+        """A copy where every FAP keeps its last set value (0 before it is first set)."""
+        out = np.array(self.values)
+        out[:, :2] = np.nan
+        for k in range(2, N_FAPS):
+            col = out[:, k]
+            idx = np.where(~np.isnan(col), np.arange(len(col)), -1)
+            np.maximum.accumulate(idx, out=idx)
+            out[:, k] = np.where(idx >= 0, col[np.maximum(idx, 0)], 0.0)
+        return FapStream(self.fps, self.frame_numbers.copy(), out, self.viseme.copy(), self.expression.copy(),
+                         self.name, self.version)
+
+    def frame_values(self, i: int) -> dict:
+        """FAP values of frame ``i`` (row index) as :func:`mpeg4.fat.apply_fat` takes them.
+
+        FAPs 3..68 that are set map to their values; a viseme pair maps ``(1, v1)`` to
+        ``blend`` and ``(1, v2)`` to ``63 − blend``; expressions map ``(2, e)`` to their
+        intensities.
+        """
+        out: dict = {}
+        row = self.values[i]
+        for k in np.flatnonzero(~np.isnan(row[2:])) + 2:
+            out[int(k) + 1] = float(row[k])
+        v = self.viseme[i]
+        if not np.isnan(v[0]):
+            out[(1, int(v[0]))] = out.get((1, int(v[0])), 0.0) + float(v[2])
+            out[(1, int(v[1]))] = out.get((1, int(v[1])), 0.0) + 63.0 - float(v[2])
+        e = self.expression[i]
+        if not np.isnan(e[0]):
+            out[(2, int(e[0]))] = out.get((2, int(e[0])), 0.0) + float(e[1])
+            out[(2, int(e[2]))] = out.get((2, int(e[2])), 0.0) + float(e[3])
+        return out
+
+
+def _number(token: str, where: str, what: str) -> float:
+    try:
+        x = float(token)
+    except ValueError:
+        raise InputError(f"{what} '{token}' is not a number", where=where,
+                         fix="values are numbers separated by spaces or tabs") from None
+    if not math.isfinite(x):
+        raise InputError(f"{what} '{token}' is not a finite number", where=where)
+    return x
+
+
+def parse_fap(text: str, where: str = "<string>") -> FapStream:
+    """Parse the text of a ``.fap`` file; ``where`` names it in error messages."""
+    lines = [(k + 1, line.split()) for k, line in enumerate(re.split(r"\r\n|\r|\n", text))]
+    lines = [(n, toks) for n, toks in lines if toks and not toks[0].startswith("#")]
+    if not lines:
+        raise InputError("the file has no header line", where=where,
+                         fix="a .fap file starts with '<version> <name> <fps> <frame count>', e.g. '2.1 demo 25 100'")
+    n0, head = lines[0]
+    here = f"{where}, line {n0}"
+    if len(head) < 4:
+        raise InputError(f"the header has {len(head)} fields, expected 4: version, name, fps, frame count",
+                         where=here, fix="e.g. '2.1 demo 25 100'")
+    version, name = head[0], " ".join(head[1:-2])
+    fps = _number(head[-2], here, "frame rate")
+    if fps <= 0:
+        raise InputError(f"frame rate {head[-2]} is not positive", where=here, fix="give frames per second, e.g. 25")
+    declared = _number(head[-1], here, "frame count")
+    if declared < 0 or declared != int(declared):
+        raise InputError(f"frame count {head[-1]} is not a whole number", where=here)
+    body = lines[1:]
+    frames, vals, vis, exps = [], [], [], []
+    k = 0
+    while k < len(body):
+        n_mask, mtoks = body[k]
+        here = f"{where}, line {n_mask}"
+        if len(mtoks) != N_FAPS:
+            raise InputError(f"expected {N_FAPS} mask flags, found {len(mtoks)}", where=here,
+                             fix="each frame starts with a mask line of one 0/1 flag per FAP 1..68")
+        mask = np.array([_number(t, here, "mask flag") for t in mtoks])
+        if not np.isin(mask, (0, 1)).all():
+            bad = mtoks[int(np.flatnonzero(~np.isin(mask, (0, 1)))[0])]
+            raise InputError(f"mask flag '{bad}' is not 0 or 1", where=here, fix="a mask line holds only 0 and 1")
+        if k + 1 >= len(body):
+            raise InputError("the last mask line has no value line after it", where=here,
+                             fix="the file is truncated; each mask line is followed by '<frame> <values>'")
+        n_val, vtoks = body[k + 1]
+        here = f"{where}, line {n_val}"
+        flags = mask.astype(bool)
+        expected = 1 + sum(_WIDTH.get(f + 1, 1) for f in np.flatnonzero(flags))
+        if len(vtoks) != expected:
+            raise InputError(f"frame {vtoks[0]}: expected {expected} numbers (the frame number and "
+                             f"{expected - 1} values for the {int(flags.sum())} FAPs in the mask), found {len(vtoks)}",
+                             where=here, fix="give one value per masked FAP (4 for FAP 1, 6 for FAP 2), in FAP order")
+        nums = [_number(t, here, "value") for t in vtoks]
+        frame = nums[0]
+        if frame != int(frame):
+            raise InputError(f"frame number {vtoks[0]} is not a whole number", where=here)
+        if frames and int(frame) <= frames[-1]:
+            raise InputError(f"frame number {int(frame)} does not follow frame {frames[-1]}", where=here,
+                             fix="frame numbers must increase")
+        row = np.full(N_FAPS, np.nan)
+        v = np.full(4, np.nan)
+        e = np.full(6, np.nan)
+        pos = 1
+        for f in np.flatnonzero(flags):
+            width = _WIDTH.get(f + 1, 1)
+            chunk = nums[pos:pos + width]
+            pos += width
+            if f == 0:
+                v[:] = chunk
+            elif f == 1:
+                e[:] = chunk
+            else:
+                row[f] = chunk[0]
+        if not np.isnan(v[0]) and not (v[0] in VISEMES and v[1] in VISEMES):
+            raise InputError(f"frame {int(frame)}: viseme numbers {v[0]:g}, {v[1]:g} are not in 0..14", where=here)
+        if not np.isnan(e[0]) and not (e[0] in EXPRESSIONS and e[2] in EXPRESSIONS):
+            raise InputError(f"frame {int(frame)}: expression numbers {e[0]:g}, {e[2]:g} are not in 0..6", where=here)
+        frames.append(int(frame))
+        vals.append(row)
+        vis.append(v)
+        exps.append(e)
+        k += 2
+    n = len(frames)
+    return FapStream(fps, np.array(frames, dtype=np.int64), np.array(vals).reshape(n, N_FAPS),
+                     np.array(vis).reshape(n, 4), np.array(exps).reshape(n, 6), name=name or "stream",
+                     version=version, declared_frames=None if int(declared) == n else int(declared))
+
+
+def read_fap(path: str | os.PathLike) -> FapStream:
+    """Read a ``.fap`` file (errors name the file and line)."""
+    path = require_file(path, "FAP stream")
+    try:
+        with open(path, encoding="utf-8", errors="strict") as f:
+            text = f.read()
+    except UnicodeDecodeError:
+        with open(path, encoding="latin-1") as f:  # names with accents in old files
+            text = f.read()
+    return parse_fap(text, where=path)
+
+
+def _fmt(x: float) -> str:
+    return str(int(x)) if float(x).is_integer() and abs(x) < 1e15 else repr(float(x))
+
+
+def format_fap(stream: FapStream) -> str:
+    """The ``.fap`` text of ``stream`` (every frame with its own mask)."""
+    name = re.sub(r"\s+", "_", stream.name.strip()) or "stream"
+    out = [f"{stream.version} {name} {_fmt(stream.fps)} {stream.n_frames}"]
+    mask = stream.mask
+    for i in range(stream.n_frames):
+        out.append(" ".join("1" if m else "0" for m in mask[i]))
+        vals = [str(int(stream.frame_numbers[i]))]
+        for f in np.flatnonzero(mask[i]):
+            if f == 0:
+                vals += [_fmt(x) for x in stream.viseme[i]]
+            elif f == 1:
+                vals += [_fmt(x) for x in stream.expression[i]]
+            else:
+                vals.append(_fmt(stream.values[i, f]))
+        out.append(" ".join(vals))
+    return "\n".join(out) + "\n"
+
+
+def write_fap(stream: FapStream, path: str | os.PathLike) -> str:
+    """Write ``stream`` as a ``.fap`` file, atomically."""
+    with atomic_write(path, "w", encoding="utf-8") as f:
+        f.write(format_fap(stream))
+    return os.fspath(path)
+
+
+def describe_fap(stream: FapStream) -> str:
+    """A few lines about a stream: rate, frames, duration, which FAPs it drives and how far."""
+    mask = stream.mask
+    used = np.flatnonzero(mask.any(axis=0)) + 1
+    low = [int(f) for f in used if f > 2]
+    lines = [f"name: {stream.name} (version {stream.version})",
+             f"frames: {stream.n_frames} at {stream.fps:g} fps, {stream.duration:.2f} s"
+             + (f" (the header says {stream.declared_frames})" if stream.declared_frames is not None else "")]
+    if stream.n_frames:
+        lines.append(f"frame numbers: {stream.frame_numbers[0]} to {stream.frame_numbers[-1]}"
+                     + ("" if np.all(np.diff(stream.frame_numbers) == 1) else " (with gaps)"))
+    empty = int((~mask.any(axis=1)).sum())
+    if empty:
+        lines.append(f"frames that set no FAP: {empty}")
+    lines.append(f"low-level FAPs driven: {len(low)}"
+                 + (": " + ", ".join(f"{f} {FAPS[f].name}" for f in low[:8]) + (" ..." if len(low) > 8 else "")
+                    if low else ""))
+    for f in low[:8]:
+        col = stream.values[:, f - 1]
+        col = col[~np.isnan(col)]
+        lines.append(f"  {f} {FAPS[f].name}: {col.min():g} .. {col.max():g} {FAPS[f].unit}")
+    if mask[:, 0].any():
+        v = stream.viseme[mask[:, 0]]
+        ids = sorted({int(x) for x in np.r_[v[:, 0], v[:, 1]]})
+        lines.append("visemes: " + ", ".join(f"{i} {VISEMES[i].name}" for i in ids))
+    if mask[:, 1].any():
+        e = stream.expression[mask[:, 1]]
+        ids = sorted({int(x) for x in np.r_[e[:, 0], e[:, 2]]})
+        lines.append("expressions: " + ", ".join(f"{i} {EXPRESSIONS[i].name}" for i in ids))
+    return "\n".join(lines)
