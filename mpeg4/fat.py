@@ -82,7 +82,7 @@ def signed_overlaps(borders: np.ndarray, value: float) -> np.ndarray:
     if p > 0:
         return np.maximum(0.0, np.minimum(p, hi) - np.maximum(0.0, lo))
     if p < 0:
-        return -np.maximum(0.0, np.minimum(0.0, hi) - np.maximum(p, lo))
+        return 0.0 - np.maximum(0.0, np.minimum(0.0, hi) - np.maximum(p, lo))  # no -0.0
     return np.zeros(len(lo))
 
 

@@ -5,7 +5,8 @@ Sibson-weighted mean of the control points' displacements, the control points be
 feature points plus 27 points around the head that follow the best similarity (or affine)
 fit of the feature points, so that every vertex lies inside the controls' convex hull and
 the far field moves smoothly. Sibson coordinates interpolate, so a vertex that *is* a
-feature point lands exactly on its target. A thin-plate-spline RBF deformation is kept
+feature point lands exactly on its target; a point bound between vertices (a midpoint)
+is put on its target by moving those few vertices by the small remaining residual. A thin-plate-spline RBF deformation is kept
 beside it for comparison (``method="rbf"``).
 
 Eyes, teeth, gums and tongue keep their shape: each moves by the similarity transform that
@@ -243,6 +244,18 @@ def deform_head(head: Head, targets: Mapping[str, np.ndarray], method: str = "df
                 part.centre = sim(part.centre[None])[0]
         else:
             part.vertices = moved
+    # A point bound between vertices (a midpoint, a barycentric point) is not itself a
+    # vertex, so the interpolation does not pin it; move its few vertices by the residual.
+    # Vertices that are feature points themselves stay pinned.
+    pinned = {(out.feature_points[i].part, out.feature_points[i].vertices[0]) for i in ids
+              if len(out.feature_points[i].vertices) == 1}
+    for i, g in zip(ids, goal):
+        b = out.feature_points[i]
+        if len(b.vertices) > 1 and b.part not in rigid_parts:
+            free = [(v, w) for v, w in zip(b.vertices, b.weights) if (b.part, v) not in pinned]
+            share = sum(w for _, w in free)
+            if free and share > 0:
+                out.parts[b.part].vertices[[v for v, _ in free]] += (g - out.fp_position(i)) / share
     out.metadata = dict(out.metadata, deformation=dict(method=method, far_field=far_field,
                                                        control_points=len(ids), bounding_points=len(box),
                                                        coincident_points_skipped=skipped))

@@ -50,6 +50,15 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb", encoding: str | None
             yield f
             f.flush()
             os.fsync(f.fileno())
+        # mkstemp makes the file private; give it the permissions a plain open() would
+        # (or the replaced file's own).
+        try:
+            perm = os.stat(path).st_mode & 0o777
+        except FileNotFoundError:
+            umask = os.umask(0)
+            os.umask(umask)
+            perm = 0o666 & ~umask
+        os.chmod(tmp, perm)
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):

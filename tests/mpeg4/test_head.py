@@ -47,3 +47,23 @@ def test_bad_heads_are_rejected_with_clear_messages():
         FeaturePointBinding("skin", (0, 1), (0.5, 0.6))
     with pytest.raises(InputError, match="no morph target 'frown'"):
         Head({"skin": skin}).morphed({"frown": 1})
+
+
+def test_atomic_write_keeps_normal_permissions_and_the_old_file_on_error(tmp_path):
+    import os
+
+    from mpeg4.io import atomic_write
+
+    p = tmp_path / "a.txt"
+    with atomic_write(p, "w") as f:
+        f.write("one")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (p.stat().st_mode & 0o777) == 0o666 & ~umask
+    try:
+        with atomic_write(p, "w") as f:
+            f.write("two")
+            raise RuntimeError("crash while writing")
+    except RuntimeError:
+        pass
+    assert p.read_text() == "one" and len(list(tmp_path.iterdir())) == 1

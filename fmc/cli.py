@@ -1,0 +1,48 @@
+"""``fmc``: facial motion for MPEG-4 heads. Each command wraps one public function."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import typer
+
+from mpeg4.errors import InputError
+
+app = typer.Typer(help="Inspect, convert and animate MPEG-4 heads and FAP streams.",
+                  no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
+
+
+@app.command()
+def info(head: Path = typer.Argument(..., help="Head file (.glb, .gltf or .obj with its .fdp.json).")) -> None:
+    """Describe a head: parts, feature points, FAPU, morph targets and animation tables."""
+    from mpeg4.io import load_head
+
+    typer.echo(load_head(head).summary())
+
+
+@app.command()
+def convert(head: Path = typer.Argument(..., help="Head to read (.glb, .gltf, .obj)."),
+            out: Path = typer.Option(..., "-o", "--out", help="Head to write (.glb or .obj).")) -> None:
+    """Convert a head between GLB and OBJ, keeping feature points, FAPU and morph targets."""
+    from mpeg4.io import load_head, save_head
+
+    save_head(load_head(head), out)
+    typer.echo(out)
+
+
+@app.command("fap-info")
+def fap_info(stream: Path = typer.Argument(..., help="MPEG-4 .fap text stream.")) -> None:
+    """Check a .fap stream and describe it: frames, rate, duration and the FAPs it drives."""
+    from mpeg4.io.fap import describe_fap, read_fap
+
+    typer.echo(describe_fap(read_fap(stream)))
+
+
+def main() -> None:
+    """Console entry point: user-input errors print as one line, exit status 2."""
+    try:
+        app()
+    except InputError as e:
+        typer.echo(f"fmc: error: {e}", err=True)
+        sys.exit(2)

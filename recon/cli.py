@@ -1,0 +1,67 @@
+"""``recon``: photos to a textured MPEG-4 head. Each command wraps one public function."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import typer
+
+from mpeg4.errors import InputError
+
+app = typer.Typer(help="Turn a front and a side photo into a textured, animatable MPEG-4 head.",
+                  no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
+
+
+def _say(msg: str) -> None:
+    typer.echo(f"recon: {msg}", err=True)
+
+
+@app.command()
+def example(out: Path = typer.Option(Path("example_out"), "-o", "--out", help="Output folder.")) -> None:
+    """Run the main job on the embedded example: head.glb, head.fdp.json and preview.png."""
+    from .example import run_example
+
+    paths = run_example(out, progress=_say)
+    for kind, path in paths.items():
+        typer.echo(f"{kind}: {path}")
+
+
+@app.command()
+def fit(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
+        side: Path = typer.Argument(..., help="Side (profile) photo."),
+        fdp: Path = typer.Option(..., "--fdp", help="Annotations of both photos (*.fdp.json)."),
+        out: Path = typer.Option(Path("head_out"), "-o", "--out", help="Output folder."),
+        ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm (photos carry no size)."),
+        focal: float = typer.Option(None, "--focal", help="Focal length in pixels; orthographic cameras if omitted."),
+        method: str = typer.Option("dffd", "--method", help="dffd (exact Sibson) or rbf (thin-plate spline).")
+        ) -> None:
+    """Fit the generic head to two annotated photos: head.glb, head.fdp.json, preview.png."""
+    from .fit import run_fit
+
+    paths = run_fit(front, side, fdp, out, ipd_mm=ipd, focal_px=focal, method=method, progress=_say)
+    for kind, path in paths.items():
+        typer.echo(f"{kind}: {path}")
+
+
+@app.command()
+def preview(head: Path = typer.Argument(..., help="Head file (.glb, .gltf or .obj with its .fdp.json)."),
+            out: Path = typer.Option(Path("preview.png"), "-o", "--out", help="PNG to write."),
+            size: int = typer.Option(720, help="Height of each view in pixels."),
+            labels: bool = typer.Option(True, help="Label the feature points."),
+            focal: float = typer.Option(None, help="Perspective focal length in pixels (orthographic if omitted).")
+            ) -> None:
+    """Render a head from the front, side and three-quarter with its feature points labelled."""
+    from mpeg4.io import load_head
+    from mpeg4.preview import save_preview
+
+    typer.echo(save_preview(load_head(head), out, size=size, labels=labels, focal_px=focal))
+
+
+def main() -> None:
+    """Console entry point: user-input errors print as one line, exit status 2."""
+    try:
+        app()
+    except InputError as e:
+        typer.echo(f"recon: error: {e}", err=True)
+        sys.exit(2)

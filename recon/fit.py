@@ -1,0 +1,134 @@
+"""Fit the generic head to a person: annotated photos → 3D feature points → deformed head.
+
+:func:`fit_head` is the computation (annotations in, head out); :func:`run_fit` is what
+``recon fit`` runs: it reads the photos' sizes and the ``fdp.json``, fits, and writes the
+head bundle (``head.glb``, ``head.fdp.json``, ``preview.png``).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from mpeg4.errors import InputError, require_file
+from mpeg4.head import Head
+
+from .calibrate import DEFAULT_IPD_MM, Calibration, calibrate
+from .deform import deform_head
+
+__all__ = ["fit_head", "run_fit", "image_size"]
+
+
+def image_size(path: str | os.PathLike) -> tuple[int, int]:
+    """(width, height) in pixels of a photo, read from its header."""
+    from PIL import Image, UnidentifiedImageError
+
+    path = require_file(path, "photo")
+    try:
+        with Image.open(path) as im:
+            return im.size
+    except (UnidentifiedImageError, OSError) as e:
+        raise InputError(f"not an image this tool can read ({e.__class__.__name__})", where=path,
+                         fix="give a JPEG or PNG photo") from None
+
+
+def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
+             method: str = "dffd", where: str = "fdp.json") -> tuple[Head, Calibration]:
+    """The generic head deformed to the feature points annotated on two photos.
+
+    Parameters
+    ----------
+    fdp : mpeg4.io.fdp_json.FdpFile
+        With ``front`` and ``side`` views (pixels; image sizes when known).
+    generic : Head, optional
+        The head to deform; the shipped generic head by default.
+    ipd_mm, focal_px
+        See :func:`recon.calibrate.calibrate`.
+    method : {"dffd", "rbf"}
+        See :func:`recon.deform.deform_head`.
+    where : str
+        Name of the annotation file, for error messages.
+
+    Returns
+    -------
+    head : Head
+        The person's head; ``metadata["fit"]`` records the assumptions.
+    calibration : Calibration
+    """
+    if generic is None:
+        from mpeg4.generic_head import load_generic_head
+
+        generic = load_generic_head()
+    views = {}
+    for name in ("front", "side"):
+        view = fdp.views.get(name)
+        if view is None or not view.points:
+            raise InputError(f"no feature points for the {name} photo", where=f"{where}, views",
+                             fix=f"annotate the {name} photo (recon annotate)")
+        views[name] = view
+    size = {n: (v.width, v.height) if v.width and v.height else None for n, v in views.items()}
+    try:
+        cal = calibrate(views["front"].points, views["side"].points, generic, ipd_mm=ipd_mm, focal_px=focal_px,
+                        front_size=size["front"], side_size=size["side"])
+    except InputError as e:
+        raise InputError(e.what, where=f"{where}, {e.where}" if e.where else where, fix=e.fix) from None
+    goal = {i: p for i, p in cal.points.items() if cal.source[i] != "generic"}
+    head = deform_head(generic, goal, method=method)
+    head.metadata = dict(head.metadata, fit=dict(
+        cal.assumptions, roll_deg=round(cal.roll_deg, 3), side_facing=cal.side_facing,
+        visible_side=cal.visible_side, point_sources=cal.source,
+        height_residual_mm={k: round(v, 3) for k, v in cal.height_residual_mm.items()}))
+    return head, cal
+
+
+def run_fit(front_photo, side_photo, fdp_path, out_dir, ipd_mm: float = DEFAULT_IPD_MM,
+            focal_px: float | None = None, method: str = "dffd",
+            progress: Callable[[str], None] | None = None) -> dict[str, Path]:
+    """``recon fit``: write the fitted head bundle for two annotated photos.
+
+    Parameters
+    ----------
+    front_photo, side_photo : path
+        The photos (their sizes check the annotations and give the principal point).
+    fdp_path : path
+        The annotation file with ``front`` and ``side`` views.
+    out_dir : path
+        Output folder (created); ``head.glb``, ``head.fdp.json`` and ``preview.png`` are
+        replaced atomically.
+
+    Returns
+    -------
+    dict of str to Path
+    """
+    from mpeg4.io import fdp_from_head, read_fdp_json, save_head, write_fdp_json
+    from mpeg4.preview import save_preview
+
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    fdp = read_fdp_json(fdp_path)
+    for name, photo in (("front", front_photo), ("side", side_photo)):
+        w, h = image_size(photo)
+        view = fdp.views.get(name)
+        if view is None:
+            continue
+        if view.width and view.height and (view.width, view.height) != (w, h):
+            raise InputError(f"the {name} annotations were made on a {view.width}x{view.height} image but "
+                             f"{photo} is {w}x{h}", where=os.fspath(fdp_path),
+                             fix="annotate this photo, or give the photo the annotations were made on")
+        view.width, view.height = w, h
+    say("fitting the generic head to the feature points")
+    head, cal = fit_head(fdp, ipd_mm=ipd_mm, focal_px=focal_px, method=method, where=os.fspath(fdp_path))
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"head": out / "head.glb", "fdp": out / "head.fdp.json", "preview": out / "preview.png"}
+    say(f"writing {paths['head']}")
+    save_head(head, paths["head"])
+    bundle = fdp_from_head(head)
+    bundle.views = fdp.views
+    write_fdp_json(paths["fdp"], bundle)
+    say(f"rendering {paths['preview']}")
+    save_preview(head, paths["preview"])
+    say(f"done in {time.perf_counter() - t0:.1f} s (scale from an interpupillary distance of {ipd_mm:g} mm)")
+    return paths
