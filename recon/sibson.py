@@ -27,6 +27,9 @@ References
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import Delaunay, QhullError
@@ -101,8 +104,11 @@ class NaturalNeighbours:
         self.simplices = simplices[keep]
         p = local[self.simplices]
         self.centres, self.radii2 = _circumspheres(p)
+        slack = 1e-6 * (self.radii2 + self.scale ** 2)
+        self._sphere_rows = np.vstack([-2.0 * self.centres.T,
+                                       (self.centres ** 2).sum(axis=1) - self.radii2 - slack])
 
-    def coordinates(self, queries, chunk: int = 4096) -> sp.csr_matrix:
+    def coordinates(self, queries, chunk: int = 2048) -> sp.csr_matrix:
         """Sibson coordinates of query points.
 
         Parameters
@@ -129,11 +135,15 @@ class NaturalNeighbours:
                              f"control points (the first is point {i} at {np.round(queries[i], 6).tolist()})",
                              fix="surround the mesh with bounding control points")
         rows, cols, vals = [], [], []
-        for start in range(0, len(local), chunk):
-            r, c, v = self._chunk(local[start:start + chunk])
-            rows.append(r + start)
-            cols.append(c)
-            vals.append(v)
+        starts = range(0, len(local), chunk)
+        # Chunks are independent and numpy releases the GIL in the heavy loops: use the cores.
+        workers = min(len(starts), os.cpu_count() or 1)
+        with ThreadPoolExecutor(max_workers=max(workers, 1)) as pool:
+            results = pool.map(lambda s0: self._chunk(local[s0:s0 + chunk]), starts)
+            for start, (r, c, v) in zip(starts, results):
+                rows.append(r + start)
+                cols.append(c)
+                vals.append(v)
         m = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
                           shape=(len(queries), len(self.controls))).tocsr()
         m.sum_duplicates()
@@ -146,8 +156,7 @@ class NaturalNeighbours:
         # very near the planes of two Delaunay faces, where Watson's terms cancel), use the
         # mean of the coordinates at x +- d n. That mean reproduces x exactly (linear
         # precision) and differs from the coordinates at x by O(d^2) (they are C1 there).
-        residual = np.zeros((len(x), 3))
-        np.add.at(residual, rows, vals[:, None] * controls[cols])
+        residual = _weighted_rows(rows, vals, controls[cols], len(x))
         bad |= np.linalg.norm(residual - x, axis=1) > _CHECK_TOL * self.scale
         redo = np.flatnonzero(bad)
         if len(redo) == 0:
@@ -162,8 +171,7 @@ class NaturalNeighbours:
             parts = [self._raw(x[todo] + n), self._raw(x[todo] - n)]
             ok = np.ones(len(todo), bool)
             for (r, c, v, b), sign in zip(parts, (1, -1)):
-                res = np.zeros((len(todo), 3))
-                np.add.at(res, r, v[:, None] * controls[c])
+                res = _weighted_rows(r, v, controls[c], len(todo))
                 ok &= ~b & (np.linalg.norm(res - (x[todo] + sign * n), axis=1) <= _CHECK_TOL * self.scale)
             for r, c, v, _ in parts:
                 sel = ok[r]
@@ -181,10 +189,9 @@ class NaturalNeighbours:
         for queries too close to a face plane to trust."""
         # Cavity search: a cheap matrix-product test with a generous margin, then the exact
         # distance on the candidates only.
+        # |x - c|^2 < r^2 + slack  <=>  [x, 1] . [-2c, |c|^2 - r^2 - slack] < -|x|^2
         c = self.centres
-        d2 = (x * x).sum(1)[:, None] - 2.0 * (x @ c.T) + (c * c).sum(1)[None]
-        slack = 1e-6 * (self.radii2 + self.scale ** 2)
-        qi, ti = np.nonzero(d2 < self.radii2[None] + slack[None])
+        qi, ti = np.nonzero(np.c_[x, np.ones(len(x))] @ self._sphere_rows < -np.einsum("ij,ij->i", x, x)[:, None])
         exact = ((x[qi] - c[ti]) ** 2).sum(1)
         inside = exact < self.radii2[ti] * (1 + 1e-12) + (1e-12 * self.scale) ** 2
         qi, ti = qi[inside], ti[inside]
@@ -209,13 +216,17 @@ class NaturalNeighbours:
         vals = np.concatenate([vals, np.ones(len(ctrl_rows))])
         # Sum each control's contributions over the cavity; round-off around exact zeros
         # (cancelling contributions) is not a coordinate, a clearly negative sum is a failure.
-        m = sp.coo_matrix((vals, (rows, cols)), shape=(len(x), len(self.controls))).tocsr()
-        m.sum_duplicates()
-        m = m.tocoo()
-        rows, cols, vals = m.row.astype(np.int64), m.col.astype(np.int64), m.data
+        key, inverse = np.unique(rows * len(self.controls) + cols, return_inverse=True)
+        vals = np.bincount(inverse, weights=vals, minlength=len(key))
+        rows, cols = key // len(self.controls), key % len(self.controls)
         vals = np.where(np.abs(vals) < 1e-13, 0.0, vals)
         bad[rows[vals < 0]] = True
         return rows, cols, vals, bad
+
+
+def _weighted_rows(rows, weights, vectors, n) -> np.ndarray:
+    """(n, 3): for each row r, the sum of weights * vectors over the entries in row r."""
+    return np.stack([np.bincount(rows, weights=weights * vectors[:, k], minlength=n) for k in range(3)], axis=1)
 
 
 def _circumspheres(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -226,45 +237,50 @@ def _circumspheres(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return c + p[:, 0], (c ** 2).sum(axis=1)
 
 
-def _circumcentre_with(x: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray):
-    """Circumcentre of the tetrahedra (x, a, b, c), all (K, 3); returns centres and denominators."""
-    a, b, c = a - x, b - x, c - x
-    bc, ca, ab = np.cross(b, c), np.cross(c, a), np.cross(a, b)
-    den = 2.0 * np.einsum("ij,ij->i", a, bc)
-    num = (a * a).sum(1)[:, None] * bc + (b * b).sum(1)[:, None] * ca + (c * c).sum(1)[:, None] * ab
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return x + num / den[:, None], den
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross products of (3, K) component-major vectors."""
+    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
 
 
-# For vertex i of a positively oriented tetrahedron, its three other vertices in an order
-# that makes (i, j, k, l) an even permutation of (0, 1, 2, 3).
-_EVEN = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
+# Faces of a tetrahedron named by the vertex they omit, and for vertex i its three other
+# vertices in an order that makes (i, j, k, l) an even permutation of (0, 1, 2, 3).
+_FACES = ((1, 2, 3), (0, 2, 3), (0, 1, 3), (0, 1, 2))
+_EVEN = ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1))
 
 
 def _watson(x, qi, tets, centres, controls, scale):
     """Stolen volumes (K, 4) for each (query, cavity tetrahedron) pair and its 4 vertices.
 
-    Faces are named by the vertex they omit: ``g[:, m]`` is the circumcentre of x with the
-    face opposite vertex m. For vertex i the incident faces are those opposite j, k, l.
+    ``g[m]`` is the circumcentre of the tetrahedron that x forms with the face opposite
+    vertex m; the volume x steals from vertex i through this tetrahedron is the signed
+    volume of (c, g[j], g[k], g[l]) with c the tetrahedron's circumcentre. All vectors are
+    taken relative to x (component-major, shape (3, K)) for accuracy and speed.
     """
     xq = x[qi]
-    p = controls[tets]  # (K, 4, 3)
-    g = np.empty_like(p)
-    dens = np.empty(p.shape[:2])
-    faces = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])
-    for m in range(4):
-        f = faces[m]
-        g[:, m], dens[:, m] = _circumcentre_with(xq, p[:, f[0]], p[:, f[1]], p[:, f[2]])
-    # |den| is 12 x the volume of (x, face): tiny when x lies on that face's plane.
-    area_scale = scale ** 3
-    bad = (np.abs(dens) <= _PLANE_TOL * area_scale).any(axis=1) | ~np.isfinite(g).all(axis=(1, 2))
-    w = np.empty((len(qi), 4))
-    c = centres
-    with np.errstate(invalid="ignore", over="ignore"):
-        for i in range(4):
-            j, k, l = _EVEN[i]
-            u, v, t = g[:, j] - c, g[:, k] - c, g[:, l] - c
-            w[:, i] = np.einsum("ij,ij->i", u, np.cross(v, t)) / 6.0
+    r = [(controls[tets[:, j]] - xq).T for j in range(4)]  # vertex j relative to x
+    n = [np.einsum("ij,ij->j", v, v) for v in r]
+    pair = {}
+    for i in range(4):
+        for j in range(i + 1, 4):
+            pair[i, j] = _cross(r[i], r[j])
+
+    def cross_of(i, j):
+        return pair[i, j] if i < j else -pair[j, i]
+
+    g, bad = [], np.zeros(len(qi), bool)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        for a, b, c in _FACES:
+            bc, ca, ab = cross_of(b, c), cross_of(c, a), cross_of(a, b)
+            den = 2.0 * np.einsum("ij,ij->j", r[a], bc)
+            # |den| / (2 |a||b||c|) measures how flat (x, face) is, whatever the scale.
+            bad |= np.abs(den) <= _PLANE_TOL * 2.0 * np.sqrt(n[a] * n[b] * n[c])
+            g.append((n[a] * bc + n[b] * ca + n[c] * ab) / den)
+        cc = (centres - xq).T
+        w = np.empty((len(qi), 4))
+        for i, (j, k, l) in enumerate(_EVEN):
+            u, v, t = g[j] - cc, g[k] - cc, g[l] - cc
+            w[:, i] = np.einsum("ij,ij->j", u, _cross(v, t)) / 6.0
+    bad |= ~np.isfinite(w).all(axis=1)
     w[bad] = 0.0
     return w, bad
 
