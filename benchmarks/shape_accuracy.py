@@ -145,10 +145,7 @@ def write_heatmap(head, err_mm, path):
     skin = head.skin
     t = np.clip(err_mm / 5.0, 0, 1)
     colours = (cv2.applyColorMap((t * 255).astype(np.uint8)[:, None], cv2.COLORMAP_TURBO)[:, 0, ::-1]) / 255.0
-    # Vertex colours through a 1-pixel-high texture indexed by vertex.
-    tex = (colours * 255).astype(np.uint8)[None]
-    uv = np.c_[(np.arange(skin.n_vertices) + 0.5) / skin.n_vertices, np.full(skin.n_vertices, 0.5)]
-    mesh = RenderMesh(skin.vertices, skin.triangles, uv=uv, texture=tex, colour=(1, 1, 1))
+    mesh = RenderMesh(skin.vertices, skin.triangles, colour=(1, 1, 1), vertex_colours=colours)
     panels = []
     for yaw in (0.0, 90.0):
         cam = Camera.fit(skin.vertices[FACE], 600, 720, yaw_deg=yaw, margin=0.08)

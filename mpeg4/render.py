@@ -195,6 +195,8 @@ class RenderMesh:
         Row 0 at the top.
     colour : (3,) float
         Base colour in [0, 1], multiplied with the texture.
+    vertex_colours : (N, 3) float or None
+        Per-vertex colours in [0, 1], multiplied with the rest (heat maps).
     """
 
     vertices: np.ndarray
@@ -203,6 +205,7 @@ class RenderMesh:
     uv: np.ndarray | None = None
     texture: np.ndarray | None = None
     colour: tuple = (0.8, 0.8, 0.8)
+    vertex_colours: np.ndarray | None = None
 
 
 def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
@@ -226,10 +229,13 @@ uniform mat4 view;
 in vec3 in_pos;
 in vec3 in_normal;
 in vec2 in_uv;
+in vec3 in_colour;
 out vec3 v_normal;
 out vec2 v_uv;
+out vec3 v_colour;
 out float v_depth;
 void main() {
+    v_colour = in_colour;
     vec4 eye = view * vec4(in_pos, 1.0);
     v_depth = -eye.z;
     v_normal = mat3(view) * in_normal;
@@ -248,6 +254,7 @@ uniform float ambient;
 uniform bool perspective;
 in vec3 v_normal;
 in vec2 v_uv;
+in vec3 v_colour;
 in float v_depth;
 layout(location = 0) out vec4 f_colour;
 layout(location = 1) out float f_depth;
@@ -256,7 +263,7 @@ void main() {
     // Two-sided: light the side that faces the viewer.
     if (!gl_FrontFacing) n = -n;
     float diffuse = max(dot(n, light_dir), 0.0);
-    vec3 base = colour;
+    vec3 base = colour * v_colour;
     if (textured) base *= texture(tex, v_uv).rgb;
     f_colour = vec4(base * (ambient + (1.0 - ambient) * diffuse), 1.0);
     f_depth = v_depth;
@@ -337,11 +344,13 @@ def render(meshes: Sequence[RenderMesh], camera: Camera, background=(1.0, 1.0, 1
             n = vertex_normals(v, t) if m.normals is None else np.asarray(m.normals, dtype=np.float64)
             textured = m.texture is not None and m.uv is not None
             uv = np.asarray(m.uv, dtype=np.float64) if textured else np.zeros((len(v), 2))
-            data = np.c_[v, n, uv].astype("f4")
+            vc = np.ones((len(v), 3)) if m.vertex_colours is None else np.asarray(m.vertex_colours, dtype=np.float64)
+            data = np.c_[v, n, uv, vc].astype("f4")
             vbo = ctx.buffer(data.tobytes())
             ibo = ctx.buffer(t.astype("u4").tobytes())
             resources += [vbo, ibo]
-            vao = ctx.vertex_array(prog, [(vbo, "3f 3f 2f", "in_pos", "in_normal", "in_uv")], index_buffer=ibo,
+            vao = ctx.vertex_array(prog, [(vbo, "3f 3f 2f 3f", "in_pos", "in_normal", "in_uv", "in_colour")],
+                                   index_buffer=ibo,
                                    index_element_size=4)
             resources.append(vao)
             tex = None

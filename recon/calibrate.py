@@ -6,8 +6,9 @@ line maps side-photo rows to front-photo heights), a small head roll in the fron
 removed using the pupils, and the absolute size comes from the user's interpupillary
 distance (photos carry none). The side photo may face either way; which side of the face
 it shows is read from its labels and mirrored to the other side. Points one view cannot
-show take their missing coordinate from the generic head, similarity-fitted to the points
-that are known in 3D; points neither view shows (tongue, teeth, 7.1) come wholly from it.
+show take their missing coordinate from the generic head carried by the same free-form
+deformation that shapes the head, driven by the points known in 3D; points neither view
+shows (tongue, teeth, 7.1) come wholly from it.
 
 Cameras are orthographic by default. With a focal length (pixels, both photos) each view
 is a pinhole camera on its axis through the image centre, and the points are found by a
@@ -28,7 +29,7 @@ from mpeg4.catalogue import FEATURE_POINTS, FP_IDS, check_fp_id
 from mpeg4.errors import InputError
 from mpeg4.head import Head
 
-from .deform import fit_similarity
+from .deform import bounding_controls, dffd, fit_similarity
 
 __all__ = ["DEFAULT_IPD_MM", "Calibration", "calibrate"]
 
@@ -243,14 +244,14 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
     shift = np.r_[0.0, (g_full - p_full).mean(axis=0)[1:]]
     for i in FP_IDS:
         pts[i] = [None if v is None else v + shift[k] for k, v in enumerate(pts[i])]
-    sim = fit_similarity(g_full, p_full + shift)
+    guess = _generic_guess(g, full, p_full + shift)
     out = {}
     for i in FP_IDS:
         if None in pts[i]:
             if i not in g:
                 raise InputError(f"feature point {i} is marked in neither view and the generic head lacks it")
-            guess = sim(g[i][None])[0]
-            pts[i] = [guess[k] if v is None else v for k, v in enumerate(pts[i])]
+            guess_i = guess[i]
+            pts[i] = [guess_i[k] if v is None else v for k, v in enumerate(pts[i])]
         if FEATURE_POINTS[i].side == "C":
             pts[i][0] = 0.0
         out[i] = np.array(pts[i], dtype=np.float64)
@@ -260,6 +261,28 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
         height_residual_mm={i: float(resid[i] * 1000) for i in shared},
         assumptions=dict(ipd_mm=float(ipd_mm), camera="orthographic" if focal_px is None
                          else f"perspective, focal length {focal_px:g} px", height_tol_mm=height_tol_mm))
+
+
+def _generic_guess(g: dict, full: list, known: np.ndarray) -> dict:
+    """Where the generic head's points go when its complete points move to ``known``.
+
+    The generic feature points are carried by the same Dirichlet free-form deformation
+    that will shape the head (complete points as controls, a similarity fit for the far
+    field), so a point seen in one view gets its missing coordinate from its neighbours'
+    motion rather than from one global transform.
+    """
+    ids = list(g)
+    rest = np.array([g[i] for i in ids])
+    g_full = np.array([g[i] for i in full])
+    _, first = np.unique(g_full.round(9), axis=0, return_index=True)  # one control per place
+    g_full, known = g_full[np.sort(first)], known[np.sort(first)]
+    box = bounding_controls(rest)
+    controls = np.vstack([g_full, box])
+    displaced = np.vstack([known, fit_similarity(g_full, known)(box)])
+    # Generic points that coincide with a control (or each other) keep their control's motion.
+    uniq, inv = np.unique(rest.round(9), axis=0, return_inverse=True)
+    moved = dffd(uniq, controls, displaced)[inv.reshape(-1)]
+    return dict(zip(ids, moved))
 
 
 def _fit_heights(shared, Yf, side_any):

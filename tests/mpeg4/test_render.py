@@ -87,3 +87,13 @@ def test_flat_lit_plane_has_its_colour_and_repeated_renders_keep_working():
     for _ in range(40):
         image = render([RenderMesh(quad, [[0, 1, 2], [0, 2, 3]], colour=colour)], cam, light=(0, 0, 1))
     np.testing.assert_allclose(image[16, 16] / 255.0, colour, atol=2 / 255)
+
+
+def test_vertex_colours_multiply_the_base_colour():
+    quad = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
+    cam = Camera(32, 32, look_rotation(0, 0), [0, 0, 3], scale_px=14.0)
+    vc = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])  # red bottom, blue top
+    image = render([RenderMesh(quad, [[0, 1, 2], [0, 2, 3]], colour=(1, 1, 1), vertex_colours=vc)], cam,
+                   light=(0, 0, 1))
+    assert image[27, 16, 0] > 200 and image[27, 16, 2] < 60  # bottom rows red
+    assert image[4, 16, 2] > 200 and image[4, 16, 0] < 60  # top rows blue
