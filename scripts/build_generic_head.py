@@ -64,7 +64,9 @@ RULES = {
     "2.4": "lm 64 (left inner lip corner)", "2.6": "lm 63", "2.8": "lm 65",
     "2.10": "frontmost midline vertex between 2.1 and 8.2 (chin boss)",
     "2.11": "lm 10 (left chin corner)", "2.13": "lm 13 (left jaw angle on the outline)",
-    "3.1": "midpoint of lm 43 and 44 (upper lid margin)", "3.3": "midpoint of lm 46 and 47 (lower lid margin)",
+    "3.1": "upper lid margin at the pupil: the lowest skin vertex above 3.5 within 1.2 mm of its x and at most "
+           "3 mm behind it",
+    "3.3": "lower lid margin at the pupil: the highest such skin vertex below 3.5",
     "3.5": "eye_l vertex furthest along the gaze (centre of the iris)",
     "3.7": "lm 45 (outer corner)", "3.11": "lm 42 (inner corner)",
     "3.9": "front(x of 3.3, y of 3.3 - 4 mm) (lower lid fold)",
@@ -205,8 +207,6 @@ def place_feature_points(data, part_vertices) -> dict[str, tuple[str, tuple[int,
                  "3.7": 45, "3.11": 42, "4.1": 22, "4.3": 24, "4.5": 26, "8.1": 51, "8.2": 57, "8.3": 54,
                  "8.10": 52, "9.5": 35, "9.12": 28, "9.15": 33}.items():
         at(i, lm[k])
-    mid("3.1", lm[43], lm[44])
-    mid("3.3", lm[46], lm[47])
     mid("8.5", lm[52], lm[53])
     mid("8.7", lm[55], lm[56])
     mids = P.midline
@@ -220,6 +220,11 @@ def place_feature_points(data, part_vertices) -> dict[str, tuple[str, tuple[int,
     centre, _ = sphere_fit(v[sclera])
     gaze = v[iris].mean(axis=0) - centre
     at("3.5", eye[np.argmax((v[eye] - centre) @ gaze)], "eye_l")
+    # Lid margins at the pupil's x: the skin vertices that bound the visible eye there.
+    near = P.skin[(np.abs(v[P.skin, 0] - pos("3.5")[0]) < 0.0012) & (v[P.skin, 2] > pos("3.5")[2] - 0.003)]
+    above, below = near[v[near, 1] > pos("3.5")[1]], near[v[near, 1] < pos("3.5")[1]]
+    at("3.1", above[np.argmin(v[above, 1])])
+    at("3.3", below[np.argmax(v[below, 1])])
     at("3.9", P.front(pos("3.3")[0], pos("3.3")[1] - 0.004))
     at("3.13", P.front(pos("3.1")[0], pos("3.1")[1] + 0.005))
     y_cheek = 0.5 * (pos("9.15")[1] + pos("8.1")[1])

@@ -42,7 +42,9 @@ def test_fapu_in_adult_ranges(built):
     assert 45e-3 <= f.MW0 <= 55e-3
     assert 35e-3 <= f.ENS0 <= 50e-3
     assert 12e-3 <= f.MNS0 <= 22e-3
-    assert 7.5e-3 <= f.IRISD0 <= 13e-3  # ICT's lids cover the top of the iris (README)
+    # The lid margins at the pupil are 9.9 mm apart: ICT's neutral lids are a little closed
+    # against the reference's ball-park of 10-13 mm (README).
+    assert 9.5e-3 <= f.IRISD0 <= 13e-3
 
 
 def test_left_right_mirror_and_midline(built):
