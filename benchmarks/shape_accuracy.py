@@ -71,6 +71,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--identities", type=int, default=20)
     ap.add_argument("--noise", type=float, nargs="+", default=[0.0, 1.0, 3.0])
+    ap.add_argument("--far-field", choices=["similarity", "affine"], default="similarity",
+                    help="how the bounding control points follow the feature points")
     ap.add_argument("--heatmap", type=Path, help="write a per-vertex error render of the first identity (DFFD, exact)")
     args = ap.parse_args(argv)
     if not NPZ.exists():
@@ -108,7 +110,7 @@ def main(argv=None) -> int:
                 rest = np.array([generic.fp_position(i) for i in ids])
                 heads = {"similarity": fit_similarity(rest, np.array([goal[i] for i in ids]))(generic.skin.vertices)}
                 for method in ("rbf", "dffd"):
-                    out = deform_head(generic, goal, method=method)
+                    out = deform_head(generic, goal, method=method, far_field=args.far_field)
                     heads[method] = out.skin.vertices
                 for method, v in heads.items():
                     # Remove the free translation: the mean offset of the feature points.
