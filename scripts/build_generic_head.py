@@ -77,8 +77,8 @@ RULES = {
     "6.1": "frontmost tongue vertex near the midline (tip), averaged with its mirror vertex",
     "6.2": "highest tongue vertex near the midline, halfway back (body centre), averaged with its mirror",
     "6.3": "tongue vertex furthest left at the depth of 6.2",
-    "7.1": "inside the neck: 0.3 of the back and 0.2 of the front midline neck surface (both sides) at "
-           "the height of the ear lobes (10.5)",
+    "7.1": "inside the neck: 0.35 of each ear lobe (10.5, 10.6) and 0.3 of the back of the neck on the "
+           "midline at the lobes' height",
     "8.1": "lm 51", "8.2": "lm 57", "8.3": "lm 54", "8.5": "midpoint of lm 52 and 53", "8.7": "midpoint of lm 55 and 56",
     "8.10": "lm 52 (left peak of the Cupid's bow)",
     "9.1": "front(1.25 x of 9.5, y of 9.5 + 4 mm) (outer edge of the ala)",
@@ -286,10 +286,12 @@ def place_feature_points(data, part_vertices) -> dict[str, tuple[str, tuple[int,
     at("11.5", top)
     above = mids[v[mids, 1] > pos("9.15")[1]]
     at("11.6", above[np.argmin(v[above, 2])])
-    # 7.1 inside the neck at the lobes' height.
+    # 7.1 inside the neck at the lobes' height: between the two lobes and the back of the
+    # neck (the mirror pair keeps it on the midline).
     neck = mids[np.abs(v[mids, 1] - pos("10.5")[1]) < 0.006]
-    back, throat = neck[np.argmin(v[neck, 2])], neck[np.argmax(v[neck, 2])]
-    fp["7.1"] = ("skin", (int(back), int(throat)), (0.6, 0.4))
+    back = neck[np.argmin(v[neck, 2])]
+    lobe = fp["10.5"][1][0]
+    fp["7.1"] = ("skin", (int(lobe), P.mirror(lobe), int(back)), (0.35, 0.35, 0.3))
     # Right side: the mirror images of the left points.
     for i in FP_IDS:
         f = FEATURE_POINTS[i]

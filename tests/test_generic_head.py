@@ -73,6 +73,8 @@ def test_anatomical_orderings(built):
     assert z["9.3"] == max(z.values())
     assert z["11.6"] == min(z.values())
     assert y["10.1"] > y["10.5"] and z["10.3"] < z["10.7"]
+    # 7.1, the top of the spine, is inside the neck: behind the lobes, in front of the nape.
+    assert z["11.6"] < z["7.1"] < z["10.5"] and abs(y["7.1"] - y["10.5"]) < 0.01
 
 
 def test_eyes_turn_about_their_centres(built):
