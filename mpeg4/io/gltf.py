@@ -439,8 +439,9 @@ def _read_own(r: _Reader, ext: dict) -> Head:
             key = (t["fap"], t["high_level"])
             if key not in transforms:
                 transforms.add(FaceDefTable(*key))
-            transforms[key].transforms.append(FaceDefTransform(t["part"], t["kind"], t["centre"], t["axis"],
-                                                               t["amount"] if t["kind"] == "rotation" else t["amount"]))
+            # pygltflib drops null values from extras: a missing part is the whole head.
+            transforms[key].transforms.append(FaceDefTransform(t.get("part"), t["kind"], t["centre"], t["axis"],
+                                                               t["amount"]))
         fat_targets = {s.target: targets.get(s.target, {}) for s in specs}
         fat = fat_from_morph_targets(fat_targets, specs, head.fapu, transforms) if specs else FAT()
         for key, table in transforms.items():

@@ -41,6 +41,7 @@ def small_head(textured=True, with_fat=True):
                              transforms=[FaceDefTransform("teeth_lower", "rotation", [0, -0.02, 0.0], [1, 0, 0], 1.0)]))
         fat.add(FaceDefTable(23, transforms=[FaceDefTransform("eye_l", "rotation", [0.032, 0.03, 0.07],
                                                               [0, 1, 0], 1.0)]))
+        fat.add(FaceDefTable(49, transforms=[FaceDefTransform(None, "rotation", [0, -0.02, -0.01], [0, 1, 0], 1.0)]))
         fat.add(FaceDefTable(1, 4, meshes=[FaceDefMesh("skin", [0, 63], [10, 11], rng.normal(0, 1e-4, (2, 1, 3)))]))
         head.fat = fat
     return head
@@ -73,7 +74,7 @@ def test_round_trip_keeps_everything(tmp_path, validate_gltf):
     # The tables play back the same.
     neutral = {n: p.vertices for n, p in head.parts.items()}
     neutral_back = {n: p.vertices for n, p in back.parts.items()}
-    for values in ({3: 500.0}, {3: -350.0, 23: 20000.0}, {(1, 4): 40.0, 3: 1200.0}):
+    for values in ({3: 500.0}, {3: -350.0, 23: 20000.0}, {(1, 4): 40.0, 3: 1200.0, 49: -15000.0}):
         a = apply_fat(head.fat, neutral, values, head.fapu)
         b = apply_fat(back.fat, neutral_back, values, back.fapu)
         for n in a:
