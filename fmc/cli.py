@@ -31,6 +31,27 @@ def convert(head: Path = typer.Argument(..., help="Head to read (.glb, .gltf, .o
     typer.echo(out)
 
 
+@app.command()
+def author(head: Path = typer.Argument(..., help="Head with feature points and sculpted morph targets (.glb)."),
+           out: Path = typer.Option(..., "-o", "--out", help="Head to write with its animation tables (.glb)."),
+           value: float = typer.Option(512.0, help="FAP value the tables are authored at (interval borders).")
+           ) -> None:
+    """Author Facial Animation Tables for every low-level FAP from the head's sculpted shapes."""
+    from collections import Counter
+
+    from fmc.author import author_from_shapes
+    from mpeg4.io import load_head, save_head
+
+    h = load_head(head)
+    fat, report = author_from_shapes(h, value=value)
+    h.fat = fat
+    save_head(h, out)
+    routes = Counter(r.route for r in report)
+    typer.echo(f"{out}: {len(fat)} tables ({', '.join(f'{k} {v}' for k, v in sorted(routes.items()))}); "
+               f"worst feature point error {max(r.error for r in report):.1%}, "
+               f"worst leak into unrelated points {max(r.leak for r in report):.1%}")
+
+
 @app.command("fap-info")
 def fap_info(stream: Path = typer.Argument(..., help="MPEG-4 .fap text stream.")) -> None:
     """Check a .fap stream and describe it: frames, rate, duration and the FAPs it drives."""

@@ -1,0 +1,334 @@
+"""Author Facial Animation Tables for a head from its sculpted expression shapes.
+
+For each low-level FAP the head's morph targets (e.g. the 53 ARKit-named shapes of the
+generic head) are combined with non-negative weights, found by non-negative least squares,
+so that the FAP's feature point moves along the FAP's axis by ``value × FAPU`` while the
+feature points of other regions, and those on the other side of the face, stay still.
+Bidirectional FAPs get one combination per direction (interval borders
+``[-value, 0, value]``), unidirectional ones one (``[0, value]``). Rotations are
+FaceDefTransforms: the head about 7.1 and the eyeballs about their centres.
+
+Where no combination of shapes does the job (the ears, the nose wings, the tongue when
+the shapes never move it), the FAP falls back to a smooth local displacement field around
+its feature point: a compact bump ``(1 − (r/R)²)²`` over the FP's own part, with R set by
+the region. Which route each FAP took, and how well it meets the FAP, is reported.
+
+References
+----------
+.. [1] ISO/IEC 14496-2, Face Animation (FAP semantics, FaceDefTables); the project's
+   reference ``mpeg4-fba.md`` sections 3 and 5.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import nnls
+
+from mpeg4.catalogue import FAPS, FEATURE_POINTS, FP_IDS
+from mpeg4.errors import InputError
+from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
+from mpeg4.head import Head, SparseDisplacement
+
+__all__ = ["REGIONS", "ADJACENT", "region_of", "unrelated", "lip_side", "FapFit", "author_from_shapes"]
+
+#: FP group → face region. Regions follow the muscles that move them together: the soft
+#: cheeks (5.1/5.2) move with the mouth, the forehead's hairline with the brows (see
+#: :func:`region_of` for the single points that differ from their group).
+REGIONS = {2: "mouth", 8: "mouth", 6: "mouth", 3: "eyes", 4: "brows", 5: "cheeks", 9: "nose", 10: "ears",
+           11: "skull", 7: "skull"}
+
+# Falloff radius (metres per unit of ES0) of the fallback displacement field, per region.
+_RADIUS = {"mouth": 0.25, "eyes": 0.12, "brows": 0.3, "cheeks": 0.3, "nose": 0.2, "ears": 0.35, "skull": 0.6}
+
+
+def region_of(fp_id: str) -> str:
+    """The face region a feature point belongs to.
+
+    The teeth points 9.8–9.11 and the soft cheeks 5.1/5.2 belong to the mouth; the lid
+    folds 3.13/3.14 and the hairline 11.1–11.3 to the brows, whose muscles lift them (the
+    lid margins stay with the eyes).
+    """
+    if fp_id in ("9.8", "9.9", "9.10", "9.11", "5.1", "5.2"):
+        return "mouth"
+    if fp_id in ("3.13", "3.14", "11.1", "11.2", "11.3"):
+        return "brows"
+    return REGIONS[FEATURE_POINTS[fp_id].group]
+
+
+# The jaw FAPs use the sculpted jaw shapes alone (the chin follows an arc, not the axis).
+_JAW_SHAPES = {3: ("jawOpen",), 14: ("jawForward",), 15: ("jawLeft", "jawRight")}
+
+# Lip points: which lip each lies on (the other lip must not follow it).
+_UPPER_LIP = {"2.2", "2.6", "2.7", "8.1", "8.5", "8.6", "8.9", "8.10"}
+_LOWER_LIP = {"2.3", "2.8", "2.9", "8.2", "8.7", "8.8"}
+
+
+def lip_side(head: Head, part: str) -> np.ndarray | None:
+    """(N,) +1 for vertices of ``part`` above the mouth line, −1 below, 0 beyond the corners.
+
+    The mouth line is the inner lip contour 2.5–2.7–2.2–2.6–2.4 (its upper side, which
+    meets the lower one in the neutral face), piecewise linear in x.
+    """
+    need = ("2.5", "2.7", "2.2", "2.6", "2.4")
+    if part != "skin" or not all(i in head.feature_points for i in need):
+        return None
+    pts = np.array([head.fp_position(i) for i in need])
+    v = head.parts[part].vertices
+    line_y = np.interp(v[:, 0], pts[:, 0], pts[:, 1])
+    inside = (v[:, 0] > pts[0, 0]) & (v[:, 0] < pts[-1, 0])
+    return np.where(inside, np.sign(v[:, 1] - line_y), 0.0)
+
+
+@dataclass
+class FapFit:
+    """How one FAP was authored.
+
+    Attributes
+    ----------
+    fap : int
+    route : {"shapes", "falloff", "transform", "none"}
+    error : float
+        Relative error of the feature point's motion at the authoring value (0 = exact).
+    leak : float
+        Largest motion of an unrelated feature point relative to the FAP's own motion.
+    weights : dict of str to float
+        Shape name → weight (positive direction), for ``route == "shapes"``.
+    """
+
+    fap: int
+    route: str
+    error: float = 0.0
+    leak: float = 0.0
+    weights: dict | None = None
+
+
+def _fp_matrix(head: Head, names: list[str], ids: list[str]) -> np.ndarray:
+    """(3 K, S): motion of each FP (rows x, y, z per FP) under each shape at weight 1."""
+    a = np.zeros((3 * len(ids), len(names)))
+    for s, name in enumerate(names):
+        target = head.morph_targets[name]
+        for k, i in enumerate(ids):
+            b = head.feature_points[i]
+            d = target.get(b.part)
+            if d is None:
+                continue
+            pos = np.searchsorted(d.indices, b.vertices)
+            hit = (pos < len(d.indices)) & (d.indices[np.minimum(pos, len(d.indices) - 1)] == b.vertices)
+            if hit.any():
+                a[3 * k:3 * k + 3, s] = np.asarray(b.weights)[hit] @ d.vectors[pos[hit]]
+    return a
+
+
+def _combine(head: Head, names: list[str], w: np.ndarray) -> dict[str, SparseDisplacement]:
+    """Part → displacement of the weighted sum of shapes."""
+    out: dict[str, np.ndarray] = {}
+    for name, wi in zip(names, w):
+        if wi <= 0:
+            continue
+        for part, d in head.morph_targets[name].items():
+            dense = out.setdefault(part, np.zeros((head.parts[part].n_vertices, 3)))
+            dense[d.indices] += wi * d.vectors
+    # Motions under 10 µm at the authoring value are below anything a renderer shows and
+    # would only bloat the tables (a combination of shapes touches most of the face).
+    return {p: SparseDisplacement.from_dense(v, tol=1e-5) for p, v in out.items()}
+
+
+def _falloff(head: Head, fp_id: str, motion: np.ndarray) -> dict[str, SparseDisplacement]:
+    """A smooth bump moving the FP's part around the FP by ``motion`` at its centre."""
+    b = head.feature_points[fp_id]
+    part = head.parts[b.part]
+    centre = head.fp_position(fp_id)
+    radius = _RADIUS[region_of(fp_id)] * head.fapu.ES0
+    r = np.linalg.norm(part.vertices - centre, axis=1) / radius
+    w = np.where(r < 1, (1 - r ** 2) ** 2, 0.0)
+    if fp_id in _UPPER_LIP or fp_id in _LOWER_LIP:
+        side = lip_side(head, b.part)
+        if side is not None:  # a lip point moves its own lip, not the one it touches
+            w = np.where(side == (-1.0 if fp_id in _UPPER_LIP else 1.0), 0.0, w)
+    # The bound vertices carry the FP: make its own motion exact.
+    w_fp = float(np.asarray(b.weights) @ w[list(b.vertices)])
+    dense = np.outer(w / max(w_fp, 1e-12), motion)
+    return {b.part: SparseDisplacement.from_dense(dense, tol=1e-9)}
+
+
+def _fp_motion(head: Head, disp: dict[str, SparseDisplacement], ids: list[str]) -> np.ndarray:
+    """(K, 3) motion of the FPs ``ids`` under a displacement."""
+    dense = {p: d.dense(head.parts[p].n_vertices) for p, d in disp.items()}
+    out = np.zeros((len(ids), 3))
+    for k, i in enumerate(ids):
+        b = head.feature_points[i]
+        if b.part in dense:
+            out[k] = np.asarray(b.weights) @ dense[b.part][list(b.vertices)]
+    return out
+
+
+#: Regions whose muscles pull on each other (a smile lifts the cheekbones, a raised brow
+#: the upper lids and the root of the nose); motion there is not a leak.
+ADJACENT = {"mouth": {"cheeks", "nose"}, "cheeks": {"mouth", "eyes"}, "eyes": {"brows", "cheeks"},
+            "brows": {"eyes", "nose"}, "nose": {"mouth", "brows"}, "ears": set(), "skull": set()}
+
+
+def unrelated(fp_id: str, ids: list[str]) -> np.ndarray:
+    """Mask of the FPs ``ids`` that must stay still when ``fp_id``'s FAP acts: those of
+    regions neither the same nor adjacent, and those on the other side of the face."""
+    side = FEATURE_POINTS[fp_id].side
+    region = region_of(fp_id)
+    out = []
+    for i in ids:
+        s = FEATURE_POINTS[i].side
+        other_side = side != "C" and s != "C" and s != side
+        r = region_of(i)
+        out.append((r != region and r not in ADJACENT[region]) or other_side)
+    return np.array(out)
+
+
+def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak_tol: float = 0.20,
+                       faps=None) -> tuple[FAT, list[FapFit]]:
+    """FATs for the low-level FAPs of ``head`` from its morph targets.
+
+    Parameters
+    ----------
+    head : Head
+        With feature points (all those the FAPs use) and morph targets.
+    value : float
+        FAP value the tables are authored at (the interval borders ±value).
+    tol, leak_tol : float
+        A shape combination is accepted when the FP's motion is within ``tol`` of the
+        target (relative) and no unrelated FP moves more than ``leak_tol`` of it;
+        otherwise the FAP falls back to a local displacement field.
+    faps : iterable of int, optional
+        FAPs to author (default 3..68).
+
+    Returns
+    -------
+    fat : FAT
+    report : list of FapFit
+    """
+    fapu = head.fapu
+    ids = [i for i in FP_IDS if i in head.feature_points]
+    names = sorted(head.morph_targets)
+    a = _fp_matrix(head, names, ids) if names else np.zeros((3 * len(ids), 0))
+    fat, report = FAT(), []
+    for n in (range(3, 69) if faps is None else faps):
+        fap = FAPS[n]
+        fp_id = fap.feature_points[0]
+        if fp_id not in head.feature_points:
+            raise InputError(f"FAP {n} ({fap.name}) needs feature point {fp_id}, which the head lacks",
+                             fix="place the point (fmc mark) before authoring")
+        if fap.kind == "rotation":
+            fat.add(_rotation_table(head, n))
+            report.append(FapFit(n, "transform"))
+            continue
+        if fap.kind in ("scale", "roll"):
+            table, fit = _special(head, n, value)
+            if table is not None:
+                fat.add(table)
+            report.append(fit)
+            continue
+        unit = fap_unit(n, fapu)
+        axis = fap.axis_vector
+        signs = (1.0,) if fap.direction == "U" else (-1.0, 1.0)
+        k = ids.index(fp_id)
+        bad = unrelated(fp_id, ids)
+        meshes_by_sign, route, err_all, leak_all, weights = {}, "shapes", 0.0, 0.0, None
+        jaw = [s for s in _JAW_SHAPES.get(n, ()) if s in head.morph_targets]
+        for sign in signs:
+            goal = sign * value * unit * axis
+            if jaw:
+                # The jaw turns as it opens: keep the sculpted motion, scaled so the chin
+                # moves by the FAP's amount along its axis, whatever it does across it.
+                cols = [names.index(s) for s in jaw]
+                disp, fit_err, leak, w_sub = _solve(head, jaw, a[:, cols], ids, k, bad, goal)
+                w = np.zeros(len(names))
+                w[cols] = w_sub
+                if np.isfinite(fit_err):
+                    fit_err = 0.0  # along the axis it is exact by construction
+            else:
+                disp, fit_err, leak, w = _solve(head, names, a, ids, k, bad, goal)
+            if fit_err > tol or leak > leak_tol:
+                disp = _falloff(head, fp_id, goal)
+                motion = _fp_motion(head, disp, ids)
+                fit_err = float(np.linalg.norm(motion[k] - goal) / np.linalg.norm(goal))
+                leak = float(np.linalg.norm(motion[bad], axis=1).max(initial=0) / np.linalg.norm(goal))
+                route = "falloff"
+            elif sign > 0:
+                weights = {names[j]: float(x) for j, x in enumerate(w) if x > 1e-6}
+            meshes_by_sign[sign] = disp
+            err_all, leak_all = max(err_all, fit_err), max(leak_all, leak)
+        fat.add(_mesh_table(head, n, meshes_by_sign, value, unit))
+        report.append(FapFit(n, route, err_all, leak_all, weights))
+    return fat, report
+
+
+def _solve(head, names, a, ids, k, bad, goal):
+    """NNLS for the shape weights; the displacement, its FP error, leak and weights."""
+    if a.shape[1] == 0:
+        return {}, np.inf, np.inf, np.zeros(0)
+    weights = np.where(bad, 1.0, 0.1)
+    weights[k] = 3.0
+    row_w = np.repeat(weights, 3)
+    target = np.zeros(3 * len(ids))
+    target[3 * k:3 * k + 3] = goal
+    w, _ = nnls(a * row_w[:, None], target * row_w, maxiter=2000)
+    along = a[3 * k:3 * k + 3] @ w
+    g = np.linalg.norm(goal)
+    # Scale so the motion along the FAP's axis is exactly the target.
+    proj = float(along @ goal) / g ** 2
+    if proj <= 1e-9:
+        return {}, np.inf, np.inf, w
+    w = w / proj
+    motion = (a @ w).reshape(-1, 3)
+    err = float(np.linalg.norm(motion[k] - goal) / g)
+    leak = float(np.linalg.norm(motion[bad], axis=1).max(initial=0) / g)
+    return _combine(head, names, w), err, leak, w
+
+
+def _mesh_table(head, n, by_sign, value, unit) -> FaceDefTable:
+    """A FaceDefTable from the displacement at +value (and −value)."""
+    signs = sorted(by_sign)
+    borders = [-value, 0.0, value] if len(signs) == 2 else [0.0, value]
+    parts = sorted({p for d in by_sign.values() for p in d})
+    table = FaceDefTable(n)
+    for part in parts:
+        idx = np.unique(np.concatenate([by_sign[s][part].indices for s in signs if part in by_sign[s]]))
+        disp = np.zeros((len(idx), len(signs), 3))
+        for j, s in enumerate(signs):
+            d = by_sign[s].get(part)
+            if d is not None:
+                # Slope per FAP unit: the displacement reached at s * value, over s * value units.
+                disp[np.searchsorted(idx, d.indices), j] = d.vectors / (s * value * unit)
+        table.meshes.append(FaceDefMesh(part, borders, idx, disp))
+    return table
+
+
+def _rotation_table(head: Head, n: int) -> FaceDefTable:
+    fap = FAPS[n]
+    axis = fap.axis_vector
+    if n in (48, 49, 50):
+        return FaceDefTable(n, transforms=[FaceDefTransform(None, "rotation", head.fp_position("7.1"), axis, 1.0)])
+    part = "eye_l" if "_l_" in fap.name else "eye_r"
+    if part not in head.parts or head.parts[part].centre is None:
+        raise InputError(f"FAP {n} ({fap.name}) turns part '{part}', which the head lacks or has no rotation centre",
+                         fix="give the eyeballs as parts eye_l/eye_r with centres")
+    return FaceDefTable(n, transforms=[FaceDefTransform(part, "rotation", head.parts[part].centre, axis, 1.0)])
+
+
+def _special(head: Head, n: int, value: float):
+    """Pupil dilation (scale of the iris ring about the pupil) and tongue roll."""
+    fap = FAPS[n]
+    if fap.kind == "roll":  # tongue sides up: a falloff on 6.3 and 6.4 along +y
+        unit = 1e-5  # AU: the side lifts by the radius of the tongue times the angle
+        table = FaceDefTable(n)
+        lift = {}
+        for fp_id in fap.feature_points:
+            half_width = abs(head.fp_position(fp_id)[0] - head.fp_position("6.2")[0])
+            motion = np.array([0.0, half_width * value * unit, 0.0])
+            for part, d in _falloff(head, fp_id, motion).items():
+                prev = lift.get(part)
+                lift[part] = d if prev is None else SparseDisplacement.from_dense(
+                    prev.dense(head.parts[part].n_vertices) + d.dense(head.parts[part].n_vertices), tol=1e-9)
+        table = _mesh_table(head, n, {1.0: lift}, value, unit)
+        return table, FapFit(n, "falloff")
+    return None, FapFit(n, "none")

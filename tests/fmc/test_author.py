@@ -1,0 +1,97 @@
+"""FATs authored from the generic head's sculpted shapes, checked through the decoder."""
+
+import numpy as np
+import pytest
+
+from mpeg4 import FAPS, FP_IDS, InputError, apply_fat
+from mpeg4.fat import fap_unit
+from mpeg4.generic_head import load_generic_head
+from fmc.author import author_from_shapes, lip_side, unrelated
+
+
+@pytest.fixture(scope="module")
+def authored():
+    head = load_generic_head()
+    fat, report = author_from_shapes(head)
+    head.fat = fat
+    return head, {r.fap: r for r in report}
+
+
+def _fp_motion(head, values):
+    neutral = {n: p.vertices for n, p in head.parts.items()}
+    moved = apply_fat(head.fat, neutral, values, head.fapu)
+    return {i: head.fp_position(i, moved) - head.fp_position(i) for i in head.feature_points}
+
+
+@pytest.mark.parametrize("n", [n for n in range(3, 69) if FAPS[n].kind == "translation"])
+def test_translation_faps_move_their_point_and_not_unrelated_ones(authored, n):
+    head, report = authored
+    fap = FAPS[n]
+    fp = fap.feature_points[0]
+    ids = [i for i in FP_IDS if i in head.feature_points]
+    bad = dict(zip(ids, unrelated(fp, ids)))
+    for value in ((512.0,) if fap.direction == "U" else (512.0, -512.0)):
+        goal = value * fap_unit(n, head.fapu) * fap.axis_vector
+        motion = _fp_motion(head, {n: value})
+        g = np.linalg.norm(goal)
+        if n in (3, 14, 15):  # the jaw turns: the chin's motion along the FAP's axis is what counts
+            assert abs(motion[fp] @ goal / g - g) <= 0.10 * g, (fap.name, value)
+        else:
+            assert np.linalg.norm(motion[fp] - goal) <= 0.10 * g, (fap.name, value, report[n].route)
+        leaks = {i: np.linalg.norm(m) / g for i, m in motion.items() if bad[i]}
+        worst = max(leaks, key=leaks.get)
+        # 8.1 moves its lip's outer contour; the inner contour 2.2 below it is the same lip.
+        assert leaks[worst] <= 0.20, (fap.name, value, worst, leaks[worst])
+    # Linear inside the interval: half the value, half the motion.
+    half = _fp_motion(head, {n: 256.0 if fap.direction == "U" else -256.0})[fp]
+    full = _fp_motion(head, {n: 512.0 if fap.direction == "U" else -512.0})[fp]
+    np.testing.assert_allclose(half, full / 2, atol=1e-9)
+
+
+@pytest.mark.parametrize("n, fp, sense", [(23, "3.5", [1, 0, 0]), (25, "3.5", [0, -1, 0]), (24, "3.6", [1, 0, 0]),
+                                          (49, "9.3", [1, 0, 0]), (48, "9.3", [0, -1, 0]), (50, "11.4", [-1, 0, 0])])
+def test_rotations_turn_the_right_way(authored, n, fp, sense):
+    head, _ = authored
+    m = _fp_motion(head, {n: 20000.0})[fp]  # 0.2 rad
+    assert m @ np.asarray(sense, float) > 0.5 * np.linalg.norm(m) > 0
+
+
+def test_most_faps_come_from_the_sculpted_shapes_where_shapes_exist(authored):
+    _, report = authored
+    routes = {n: r.route for n, r in report.items()}
+    assert routes[3] == "shapes" and routes[14] == "shapes" and routes[15] == "shapes"  # the jaw
+    assert sum(r == "shapes" for r in routes.values()) >= 15
+    assert all(routes[n] == "transform" for n in (23, 24, 25, 26, 48, 49, 50))
+
+
+def test_lip_split_keeps_the_lips_apart(authored):
+    head, _ = authored
+    side = lip_side(head, "skin")
+    v = head.skin.vertices
+    for fp, expect in (("8.1", 1), ("2.2", 1), ("8.2", -1), ("2.3", -1)):
+        b = head.feature_points[fp]
+        assert (side[list(b.vertices)] == expect).all() or fp in ("2.2", "2.3")
+    # Opening the jaw moves the lower lip centre, not the upper one.
+    m = _fp_motion(head, {3: 512.0})
+    assert np.linalg.norm(m["8.2"]) > 5 * np.linalg.norm(m["8.1"])
+
+
+def test_missing_points_are_named():
+    head = load_generic_head()
+    del head.feature_points["2.1"]
+    with pytest.raises(InputError, match=r"FAP 3 \(open_jaw\) needs feature point 2.1"):
+        author_from_shapes(head, faps=[3])
+
+
+def test_authored_head_round_trips_through_a_valid_glb(authored, tmp_path, validate_gltf):
+    from mpeg4.io import read_glb, write_glb
+
+    head, _ = authored
+    path = write_glb(head, tmp_path / "authored.glb")
+    assert validate_gltf(path)["issues"]["numErrors"] == 0
+    back = read_glb(path)
+    neutral = {n: p.vertices for n, p in head.parts.items()}
+    for values in ({3: 400.0, 49: -8000.0}, {12: 300.0, 31: -200.0, 23: 12000.0, 61: 150.0}):
+        a = apply_fat(head.fat, neutral, values, head.fapu)
+        b = apply_fat(back.fat, {n: p.vertices for n, p in back.parts.items()}, values, back.fapu)
+        assert max(np.abs(a[k] - b[k]).max() for k in a) < 1e-6
