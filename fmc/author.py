@@ -31,7 +31,8 @@ from mpeg4.errors import InputError
 from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
 from mpeg4.head import Head, SparseDisplacement
 
-__all__ = ["REGIONS", "ADJACENT", "region_of", "unrelated", "lip_side", "FapFit", "author_from_shapes"]
+__all__ = ["REGIONS", "ADJACENT", "region_of", "unrelated", "lip_side", "FapFit", "author_from_shapes",
+           "HIGH_LEVEL_SHAPES", "author_high_level"]
 
 #: FP group → face region. Regions follow the muscles that move them together: the soft
 #: cheeks (5.1/5.2) move with the mouth, the forehead's hairline with the brows (see
@@ -285,12 +286,12 @@ def _solve(head, names, a, ids, k, bad, goal):
     return _combine(head, names, w), err, leak, w
 
 
-def _mesh_table(head, n, by_sign, value, unit) -> FaceDefTable:
+def _mesh_table(head, n, by_sign, value, unit, high_level: int = 0) -> FaceDefTable:
     """A FaceDefTable from the displacement at +value (and −value)."""
     signs = sorted(by_sign)
     borders = [-value, 0.0, value] if len(signs) == 2 else [0.0, value]
     parts = sorted({p for d in by_sign.values() for p in d})
-    table = FaceDefTable(n)
+    table = FaceDefTable(n, high_level)
     for part in parts:
         idx = np.unique(np.concatenate([by_sign[s][part].indices for s in signs if part in by_sign[s]]))
         disp = np.zeros((len(idx), len(signs), 3))
@@ -332,3 +333,47 @@ def _special(head: Head, n: int, value: float):
         table = _mesh_table(head, n, {1.0: lift}, value, unit)
         return table, FapFit(n, "falloff")
     return None, FapFit(n, "none")
+
+
+def _load_high_level() -> dict:
+    import tomllib
+    from importlib import resources
+
+    data = tomllib.loads(resources.files("fmc").joinpath("data/high_level_shapes.toml").read_text())
+    out = {}
+    for kind, fap in (("visemes", 1), ("expressions", 2)):
+        for key, weights in data[kind].items():
+            expanded = {}
+            for name, w in weights.items():
+                if name.endswith("_LR"):
+                    expanded[name[:-3] + "_L"] = w
+                    expanded[name[:-3] + "_R"] = w
+                else:
+                    expanded[name] = w
+            out[(fap, int(key))] = expanded
+    return out
+
+
+#: (1, viseme) / (2, expression) → shape name → weight at full intensity (63), from
+#: ``fmc/data/high_level_shapes.toml``.
+HIGH_LEVEL_SHAPES = _load_high_level()
+
+
+def author_high_level(head: Head) -> FAT:
+    """FaceDefTables for the 15 visemes and 7 expressions (neutral included) from the
+    head's sculpted shapes by :data:`HIGH_LEVEL_SHAPES`; intensity 63 gives the full pose."""
+    from mpeg4.fat import HIGH_LEVEL_UNIT
+
+    fat = FAT()
+    for (fap, k), weights in HIGH_LEVEL_SHAPES.items():
+        missing = [n for n in weights if n not in head.morph_targets]
+        if missing:
+            raise InputError(f"{'viseme' if fap == 1 else 'expression'} {k} needs the shapes {', '.join(missing)}, "
+                             "which the head lacks", fix="author it from a head with ARKit-named shapes, or clone it")
+        names = list(weights)
+        disp = _combine(head, names, np.array([weights[n] for n in names])) if names else {}
+        if disp:
+            fat.add(_mesh_table(head, fap, {1.0: disp}, 63.0, HIGH_LEVEL_UNIT, high_level=k))
+        else:
+            fat.add(FaceDefTable(fap, k))
+    return fat

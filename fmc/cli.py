@@ -36,14 +36,16 @@ def author(head: Path = typer.Argument(..., help="Head with feature points and s
            out: Path = typer.Option(..., "-o", "--out", help="Head to write with its animation tables (.glb)."),
            value: float = typer.Option(512.0, help="FAP value the tables are authored at (interval borders).")
            ) -> None:
-    """Author Facial Animation Tables for every low-level FAP from the head's sculpted shapes."""
+    """Author Facial Animation Tables from the head's sculpted (ARKit-named) shapes: the 66
+    low-level FAPs, the 15 visemes and the 7 expressions."""
     from collections import Counter
 
-    from fmc.author import author_from_shapes
+    from fmc.author import author_from_shapes, author_high_level
     from mpeg4.io import load_head, save_head
 
     h = load_head(head)
     fat, report = author_from_shapes(h, value=value)
+    fat.update(author_high_level(h))
     h.fat = fat
     save_head(h, out)
     routes = Counter(r.route for r in report)

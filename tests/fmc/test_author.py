@@ -95,3 +95,54 @@ def test_authored_head_round_trips_through_a_valid_glb(authored, tmp_path, valid
         a = apply_fat(head.fat, neutral, values, head.fapu)
         b = apply_fat(back.fat, {n: p.vertices for n, p in back.parts.items()}, values, back.fapu)
         assert max(np.abs(a[k] - b[k]).max() for k in a) < 1e-6
+
+
+@pytest.fixture(scope="module")
+def high_level():
+    from fmc.author import author_high_level
+
+    head = load_generic_head()
+    head.fat = author_high_level(head)
+    return head
+
+
+def _pose(head, key):
+    neutral = {n: p.vertices for n, p in head.parts.items()}
+    moved = apply_fat(head.fat, neutral, {key: 63.0}, head.fapu)
+    return {i: head.fp_position(i, moved) for i in head.feature_points}
+
+
+def test_visemes_open_close_and_round_the_mouth(high_level):
+    head = high_level
+    base = _pose(head, (1, 0))
+    width0 = base["8.3"][0] - base["8.4"][0]
+
+    def gap(p):
+        return np.linalg.norm(p["2.2"] - p["2.3"])
+
+    assert gap(_pose(head, (1, 1))) < 1e-3  # p b m: lips together within 1 mm
+    for v, least in ((10, 0.015), (13, 0.015), (11, 0.008)):  # open vowels
+        assert gap(_pose(head, (1, v))) > least, v
+    for v in (6, 9, 14):  # rounded: the mouth narrows by over 10 %
+        p = _pose(head, (1, v))
+        assert p["8.3"][0] - p["8.4"][0] < 0.9 * width0, v
+    for v in (7, 12):  # spread: wider
+        p = _pose(head, (1, v))
+        assert p["8.3"][0] - p["8.4"][0] > 1.08 * width0, v
+    # Half intensity is half the motion (one interval, linear).
+    neutral = {n: p.vertices for n, p in head.parts.items()}
+    half = apply_fat(head.fat, neutral, {(1, 10): 31.5}, head.fapu)
+    full = apply_fat(head.fat, neutral, {(1, 10): 63.0}, head.fapu)
+    np.testing.assert_allclose(half["skin"] - neutral["skin"], (full["skin"] - neutral["skin"]) / 2, atol=1e-12)
+
+
+def test_expressions_do_what_the_reference_describes(high_level):
+    head = high_level
+    base = _pose(head, (2, 0))
+    d = {e: {i: p - base[i] for i, p in _pose(head, (2, e)).items()} for e in range(1, 7)}
+    assert d[1]["8.3"][1] > 0.003 and d[1]["8.4"][1] > 0.003  # joy: corners up
+    assert d[2]["4.1"][1] > 0.002 and d[2]["8.3"][1] < -0.001  # sadness: inner brows up, corners down
+    assert d[3]["4.1"][1] < -0.002 and d[3]["4.1"][0] < 0 < d[3]["4.2"][0]  # anger: brows down and together
+    assert d[4]["4.1"][1] > 0.003 and d[4]["3.1"][1] > 0.001  # fear: brows up, eyes wider
+    assert d[5]["8.5"][1] > 0.005 and d[5]["9.1"][1] > 0.003  # disgust: upper lip and nose wings up
+    assert d[6]["4.3"][1] > 0.005 and d[6]["2.1"][1] < -0.005  # surprise: brows up, jaw dropped
