@@ -332,7 +332,23 @@ def _special(head: Head, n: int, value: float):
                     prev.dense(head.parts[part].n_vertices) + d.dense(head.parts[part].n_vertices), tol=1e-9)
         table = _mesh_table(head, n, {1.0: lift}, value, unit)
         return table, FapFit(n, "falloff")
-    return None, FapFit(n, "none")
+    # Pupil dilation: the sculpted dilation shape, scaled so that at ``value`` the pupil's
+    # diameter grows by value x IRISD (its rim moves by half that); negative values
+    # constrict it along the same shape.
+    side = "L" if "_l_" in fap.name else "R"
+    shape = f"PupilDilate_{side}"
+    if shape not in head.morph_targets:
+        return None, FapFit(n, "none")
+    unit = fap_unit(n, head.fapu)
+    part = "eye_l" if side == "L" else "eye_r"
+    d = head.morph_targets[shape].get(part)
+    if d is None or not len(d.indices):
+        return None, FapFit(n, "none")
+    rim = float(np.linalg.norm(d.vectors, axis=1).max())
+    w = 0.5 * value * unit / rim
+    disp = {p: dd.scaled(w) for p, dd in head.morph_targets[shape].items()}
+    neg = {p: dd.scaled(-1.0) for p, dd in disp.items()}
+    return _mesh_table(head, n, {1.0: disp, -1.0: neg}, value, unit), FapFit(n, "shapes", weights={shape: w})
 
 
 def _load_high_level() -> dict:

@@ -16,7 +16,8 @@ What it does (see ``data/generic_head/README.md`` for the why):
   narrower than 2.2 cm are the tongue, the rest the lower gums); the eyelash cards and the
   lacrimal fluid, eye blend and eye occlusion overlays are dropped (they need textures with
   alpha; drawn opaque they hide the eyes);
-- the 53 ARKit-named expressions as sparse morph targets (displacements over 1e-7 m);
+- the 53 ARKit-named expressions and ICT's two pupil-dilation shapes as sparse morph targets
+  (displacements over 1e-7 m);
 - all 84 MPEG-4 feature points by the rules in :data:`RULES`, placed on the face's left and
   mirrored to the right through the mesh's own symmetry, midline points on vertices with
   x = 0 exactly.
@@ -323,8 +324,8 @@ def build_generic_head(npz_path=DEFAULT_NPZ) -> Head:
             sclera = np.arange(*v_ranges["Sclera left" if name == "eye_l" else "Sclera right"])
             centre, _ = sphere_fit(verts[sclera])
         parts[name] = Part(name, verts[ids], tris, colour=COLOURS[name], centre=centre)
-    names = [str(x) for x in data["expression_names"]]
-    deltas = data["expression_deltas"]
+    names = [str(x) for x in data["expression_names"]] + [str(x) for x in data["extra_expression_names"]]
+    deltas = np.concatenate([data["expression_deltas"], data["extra_expression_deltas"]])
     targets = {}
     for k, name in enumerate(names):
         target = {}
@@ -345,7 +346,7 @@ def build_generic_head(npz_path=DEFAULT_NPZ) -> Head:
         "units": "m",
         "ict_vertex_ids": {name: (ids.tolist() if not (np.diff(ids) == 1).all()
                                   else [int(ids[0]), int(ids[-1]) + 1]) for name, ids in part_vertices.items()},
-        "morph_targets": "ICT-FaceKit expression blendshapes (ARKit names)",
+        "morph_targets": "ICT-FaceKit expression blendshapes (ARKit names) and PupilDilate_L/R",
     }
     return Head(parts, fps, targets, metadata=metadata)
 

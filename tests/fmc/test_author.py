@@ -146,3 +146,14 @@ def test_expressions_do_what_the_reference_describes(high_level):
     assert d[4]["4.1"][1] > 0.003 and d[4]["3.1"][1] > 0.001  # fear: brows up, eyes wider
     assert d[5]["8.5"][1] > 0.005 and d[5]["9.1"][1] > 0.003  # disgust: upper lip and nose wings up
     assert d[6]["4.3"][1] > 0.005 and d[6]["2.1"][1] < -0.005  # surprise: brows up, jaw dropped
+
+
+def test_pupils_dilate_by_the_fapu(authored):
+    head, report = authored
+    neutral = {n: p.vertices for n, p in head.parts.items()}
+    for n, part, fp in ((29, "eye_l", "3.5"), (30, "eye_r", "3.6")):
+        assert report[n].route == "shapes"
+        moved = apply_fat(head.fat, neutral, {n: 512.0}, head.fapu)
+        rim = np.linalg.norm(moved[part] - neutral[part], axis=1).max()
+        assert rim == pytest.approx(0.5 * 512 * head.fapu.IRISD0 / 1024, rel=1e-9)  # the diameter grows by 512 IRISD
+        assert np.linalg.norm(head.fp_position(fp, moved) - head.fp_position(fp)) < 0.1 * rim

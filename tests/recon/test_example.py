@@ -15,7 +15,7 @@ def test_example_writes_a_valid_head_fdp_and_preview(tmp_path, validate_gltf):
     report = validate_gltf(paths["head"])
     assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0
     head = load_head(paths["head"])
-    assert len(head.feature_points) == 84 and len(head.morph_targets) == 53
+    assert len(head.feature_points) == 84 and len(head.morph_targets) == 55
     fdp = json.loads(paths["fdp"].read_text())
     assert len(fdp["points3d"]) == 84 and set(fdp["fapu"]) == {"IRISD0", "ES0", "ENS0", "MNS0", "MW0"}
     image = cv2.imread(str(paths["preview"]))
