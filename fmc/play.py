@@ -1,0 +1,163 @@
+"""Fast playback of Facial Animation Tables: FAP values → vertex positions.
+
+:class:`Player` turns a head's FAT into one sparse matrix whose columns are the
+per-interval displacement slopes of every FaceDefMesh (metres per FAP unit, over all the
+head's vertices stacked), so that a frame is: the signed overlaps of each active table's
+intervals (the section-5 rule, :func:`mpeg4.fat.signed_overlaps`), one sparse product over
+the active columns, then the FaceDefTransforms (parts first, the whole head last), exactly
+as :func:`mpeg4.fat.apply_fat` does it, only without touching the tables again.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Mapping
+
+import numpy as np
+import scipy.sparse as sp
+
+from mpeg4.errors import InputError
+from mpeg4.fat import _key, fap_unit, rotation_matrix, signed_overlaps
+from mpeg4.head import Head
+
+__all__ = ["Player"]
+
+
+class Player:
+    """Precomputed FAT playback for one head.
+
+    Parameters
+    ----------
+    head : Head
+        With ``head.fat``.
+
+    Examples
+    --------
+    >>> from mpeg4.generic_head import load_generic_head  # doctest: +SKIP
+    >>> player = Player(head)  # doctest: +SKIP
+    >>> parts = player.part_vertices(player.vertices({3: 300.0, 49: 5000.0}))  # doctest: +SKIP
+    """
+
+    def __init__(self, head: Head):
+        if head.fat is None or not len(head.fat):
+            raise InputError("the head has no Facial Animation Tables to play",
+                             fix="author them (fmc author) or clone them from a source head")
+        self.head = head
+        fapu = head.fapu
+        self.part_names = list(head.parts)
+        sizes = [head.parts[n].n_vertices for n in self.part_names]
+        self.offsets = dict(zip(self.part_names, np.cumsum([0] + sizes[:-1]).tolist()))
+        self.slices = {n: slice(o, o + s) for n, o, s in zip(self.part_names, self.offsets.values(), sizes)}
+        self.neutral = np.concatenate([head.parts[n].vertices for n in self.part_names])
+        n_all = len(self.neutral)
+        self._neutral_t = np.ascontiguousarray(self.neutral.T)  # (3, N)
+        rows, cols, vals = [], [], []
+        self.tables: dict[tuple[int, int], tuple[np.ndarray, list]] = {}
+        self.transforms = []
+        col = 0
+        for table in head.fat.tables():
+            unit = fap_unit(table.fap, fapu)
+            mesh_cols = []
+            for m in table.meshes:
+                if m.part not in self.offsets:
+                    continue
+                base = self.offsets[m.part] + m.indices
+                n = len(m.borders) - 1
+                for k in range(n):
+                    d = m.displacements[:, k, :] * unit
+                    # Component-major rows (all x, then all y, then all z): rotations of
+                    # the whole head are then one small BLAS product.
+                    rows.append((base[None, :] + n_all * np.arange(3)[:, None]).ravel())
+                    cols.append(np.full(3 * len(m.indices), col))
+                    vals.append(d.T.ravel())
+                    mesh_cols.append((col, m.borders, k))
+                    col += 1
+            self.tables[table.key] = mesh_cols
+            for t in table.transforms:
+                self.transforms.append((table.key, t, unit))
+        self.n_columns = col
+        self.matrix = sp.csc_matrix((np.concatenate(vals) if vals else np.zeros(0),
+                                     (np.concatenate(rows) if rows else np.zeros(0, int),
+                                      np.concatenate(cols) if cols else np.zeros(0, int))),
+                                    shape=(3 * len(self.neutral), max(col, 1)))
+        self.matrix.sum_duplicates()
+        # Per table and sign of the value, the columns that can be non-zero, as their own
+        # small matrix: a frame then costs the motion of its active tables only.
+        self._blocks = {}
+        for key, mesh_cols in self.tables.items():
+            for sign in (1, -1):
+                chosen = [(c, b, j) for c, b, j in mesh_cols if (b[j + 1] > 0 if sign > 0 else b[j] < 0)]
+                if chosen:
+                    self._blocks[key, sign] = (self.matrix[:, [c for c, _, _ in chosen]].tocsc(),
+                                               [(b, j) for _, b, j in chosen])
+        # Whole-head transforms go last, after the parts' own (apply_fat's order).
+        self.transforms.sort(key=lambda kt: (kt[1].part is None, kt[0]))
+
+    def vertices(self, values: Mapping) -> np.ndarray:
+        """(N, 3) vertices of all parts stacked (part order of the head) for one frame.
+
+        Parameters
+        ----------
+        values : mapping
+            FAP number → value (FAPU), or ``(1, v)`` / ``(2, e)`` → intensity; FAPs without
+            a table are ignored, like :func:`mpeg4.fat.apply_fat` does.
+        """
+        out_t = self._neutral_t.copy()
+        flat = out_t.reshape(-1)
+        keys = []
+        for k, value in values.items():
+            key = _key(k)
+            if key not in self.tables or not value:
+                continue
+            value = float(value)
+            keys.append((key, value))
+            block = self._blocks.get((key, 1 if value > 0 else -1))
+            if block is None:
+                continue
+            matrix, cols = block
+            cache: dict[int, np.ndarray] = {}
+            w = np.empty(len(cols))
+            for n, (borders, j) in enumerate(cols):
+                s = cache.get(id(borders))
+                if s is None:
+                    s = cache[id(borders)] = signed_overlaps(borders, value)
+                w[n] = s[j]
+            flat += matrix @ w
+        out = out_t.T  # (N, 3) view
+        if self.transforms:
+            vals = dict(keys)
+            whole = None  # the whole-head motions, composed into one affine map
+            for key, t, unit in self.transforms:
+                value = vals.get(key)
+                if not value:
+                    continue
+                if t.part is None:
+                    a, b = _affine(t, value, unit)
+                    whole = (a, b) if whole is None else (a @ whole[0], a @ whole[1] + b)
+                elif t.part in self.slices:
+                    sl = self.slices[t.part]
+                    out[sl] = t.apply(out[sl], value, unit)
+            if whole is not None:
+                out = (whole[0] @ out_t + whole[1][:, None]).T
+        return out
+
+    def part_vertices(self, stacked: np.ndarray) -> dict[str, np.ndarray]:
+        """Split stacked (N, 3) vertices into the head's parts."""
+        return {n: stacked[sl] for n, sl in self.slices.items()}
+
+    def play(self, stream) -> Iterator[np.ndarray]:
+        """Stacked vertices of every frame of a :class:`mpeg4.io.fap.FapStream` (values held
+        between frames that leave a FAP unset, as most players do)."""
+        held = stream.held()
+        for i in range(held.n_frames):
+            yield self.vertices(held.frame_values(i))
+
+
+def _affine(t, value: float, unit: float) -> tuple[np.ndarray, np.ndarray]:
+    """``x → A x + b`` of a FaceDefTransform at one value (for composing whole-head moves)."""
+    if t.kind == "rotation":
+        a = rotation_matrix(t.axis, t.amount * value * unit)
+        return a, t.centre - a @ t.centre
+    if t.kind == "translation":
+        return np.eye(3), t.amount * value * unit
+    a = np.diag(1.0 + t.amount * value * unit)
+    return a, t.centre - a @ t.centre
