@@ -54,6 +54,19 @@ def author(head: Path = typer.Argument(..., help="Head with feature points and s
                f"worst leak into unrelated points {max(r.leak for r in report):.1%}")
 
 
+@app.command()
+def play(head: Path = typer.Argument(..., help="Head with animation tables (.glb; see fmc author)."),
+         stream: Path = typer.Argument(..., help="MPEG-4 .fap stream."),
+         out: Path = typer.Option(Path("play_out"), "-o", "--out", help="Output folder."),
+         preview: bool = typer.Option(True, help="Also render preview.gif.")) -> None:
+    """Play a .fap stream on a head: animation.glb (morph weights and node rotations) and preview.gif."""
+    from fmc.animate import play_stream
+
+    for kind, path in play_stream(head, stream, out, preview=preview,
+                                  progress=lambda m: typer.echo(f"fmc: {m}", err=True)).items():
+        typer.echo(f"{kind}: {path}")
+
+
 @app.command("fap-info")
 def fap_info(stream: Path = typer.Argument(..., help="MPEG-4 .fap text stream.")) -> None:
     """Check a .fap stream and describe it: frames, rate, duration and the FAPs it drives."""

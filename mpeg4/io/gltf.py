@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -31,7 +32,7 @@ from ..fat import FAT, FaceDefTable, FaceDefTransform, MorphSpec, fat_from_morph
 from ..head import FeaturePointBinding, Head, Part, SparseDisplacement
 from .atomic import atomic_write
 
-__all__ = ["write_glb", "read_glb", "FORMAT_VERSION"]
+__all__ = ["write_glb", "read_glb", "FORMAT_VERSION", "GlbAnimation", "read_glb_animation"]
 
 #: Version of the ``extras["mpeg4"]`` layout.
 FORMAT_VERSION = 1
@@ -113,7 +114,33 @@ def _transform_dict(key, t: FaceDefTransform) -> dict:
                 axis=t.axis.tolist(), amount=np.asarray(t.amount, dtype=float).tolist())
 
 
-def write_glb(head: Head, path: str | os.PathLike) -> str:
+@dataclass
+class GlbAnimation:
+    """Keyframes to store with a head: morph-target weights and node rotations.
+
+    Attributes
+    ----------
+    times : (F,) float
+        Seconds, increasing.
+    weights : dict of str to (F,) float
+        Morph target name → weight per frame (targets not listed stay at 0).
+    rotations : dict of str to (F, 4) float
+        Node name → unit quaternion (x, y, z, w) per frame. ``"pivot"`` turns the whole
+        head about ``pivot`` (the point 7.1); ``"eye_l"``/``"eye_r"`` turn the eyes about
+        their centres.
+    pivot : (3,) float
+        Centre of the whole-head rotation, metres.
+    name : str
+    """
+
+    times: np.ndarray
+    weights: dict = field(default_factory=dict)
+    rotations: dict = field(default_factory=dict)
+    pivot: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    name: str = "animation"
+
+
+def write_glb(head: Head, path: str | os.PathLike, animation: GlbAnimation | None = None) -> str:
     """Write ``head`` as a GLB file (atomically) and return the path.
 
     Parameters
@@ -121,6 +148,8 @@ def write_glb(head: Head, path: str | os.PathLike) -> str:
     head : Head
     path : str or os.PathLike
         Destination, normally ``*.glb``.
+    animation : GlbAnimation, optional
+        Keyframes; the head node then hangs under a ``pivot`` node at the rotation centre.
     """
     w = _Writer()
     g, gltf = w.g, w.gltf
@@ -143,6 +172,7 @@ def write_glb(head: Head, path: str | os.PathLike) -> str:
         else:
             groups.append((name, [name], part.centre))
     part_info = []
+    mesh_target_names: dict[str, list[str]] = {}
     gltf.nodes.append(g.Node(name="head", children=[]))
     for gi, (mesh_name, part_names, centre) in enumerate(groups):
         if not part_names:
@@ -180,6 +210,7 @@ def write_glb(head: Head, path: str | os.PathLike) -> str:
         if mesh_targets:
             mesh.extras = {"targetNames": mesh_targets}
             mesh.weights = [0.0] * len(mesh_targets)
+        mesh_target_names[mesh_name] = mesh_targets
         gltf.meshes.append(mesh)
         if gi == 0:
             gltf.nodes[0].mesh = len(gltf.meshes) - 1
@@ -211,7 +242,10 @@ def write_glb(head: Head, path: str | os.PathLike) -> str:
                       tables=[list(k) for k in sorted(head.fat)]),
                   metadata=head.metadata)
     gltf.nodes[0].extras = {"mpeg4": extras}
-    gltf.scenes.append(g.Scene(nodes=[0]))
+    root = 0
+    if animation is not None:
+        root = _add_animation(w, animation, mesh_target_names)
+    gltf.scenes.append(g.Scene(nodes=[root]))
     gltf.scene = 0
     gltf.buffers.append(g.Buffer(byteLength=len(w.blob)))
     gltf.set_binary_blob(bytes(w.blob))
@@ -219,6 +253,72 @@ def write_glb(head: Head, path: str | os.PathLike) -> str:
     with atomic_write(path, "wb") as f:
         f.write(data)
     return os.fspath(path)
+
+
+def _add_animation(w: _Writer, anim: GlbAnimation, mesh_targets: dict[str, list[str]]) -> int:
+    """Add the pivot node and the animation; return the new root node's index."""
+    g, gltf = w.g, w.gltf
+    times = np.asarray(anim.times, dtype=np.float32).reshape(-1)
+    if len(times) < 1 or (np.diff(times) <= 0).any():
+        raise InputError("animation times must be increasing", fix="give one time per frame, in seconds")
+    pivot = np.asarray(anim.pivot, dtype=np.float64).reshape(3)
+    gltf.nodes[0].translation = (-pivot).tolist()
+    gltf.nodes.append(g.Node(name="pivot", translation=pivot.tolist(), children=[0]))
+    root = len(gltf.nodes) - 1
+    t_acc = w.accessor(times, "SCALAR", minmax=True)
+    samplers, channels = [], []
+    nodes = {n.name: k for k, n in enumerate(gltf.nodes)}
+    for mesh_name, names in mesh_targets.items():
+        if not names or not any(n in anim.weights for n in names):
+            continue
+        out = np.zeros((len(times), len(names)), np.float32)
+        for j, n in enumerate(names):
+            if n in anim.weights:
+                out[:, j] = np.asarray(anim.weights[n], dtype=np.float32)
+        samplers.append(g.AnimationSampler(input=t_acc, output=w.accessor(out.reshape(-1), "SCALAR"),
+                                           interpolation="LINEAR"))
+        channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
+                                           target=g.AnimationChannelTarget(node=nodes[mesh_name], path="weights")))
+    for node_name, quats in anim.rotations.items():
+        if node_name not in nodes:
+            raise InputError(f"the animation turns node '{node_name}', which the file does not have",
+                             fix=f"use one of {sorted(nodes)}")
+        q = np.asarray(quats, dtype=np.float32).reshape(len(times), 4)
+        q /= np.linalg.norm(q, axis=1, keepdims=True)
+        samplers.append(g.AnimationSampler(input=t_acc, output=w.accessor(q, "VEC4"), interpolation="LINEAR"))
+        channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
+                                           target=g.AnimationChannelTarget(node=nodes[node_name], path="rotation")))
+    if channels:
+        gltf.animations.append(g.Animation(name=anim.name, samplers=samplers, channels=channels))
+    return root
+
+
+def read_glb_animation(path: str | os.PathLike) -> GlbAnimation | None:
+    """The first animation of a GLB written by :func:`write_glb` (None if it has none)."""
+    path = require_file(path, "head file")
+    r = _Reader(path)
+    gltf = r.gltf
+    if not gltf.animations:
+        return None
+    a = gltf.animations[0]
+    out = None
+    for ch in a.channels:
+        sm = a.samplers[ch.sampler]
+        times = r.accessor(sm.input).astype(np.float64)
+        if out is None:
+            pivot = next((n.translation for n in gltf.nodes if n.name == "pivot"), None)
+            out = GlbAnimation(times, name=a.name or "animation",
+                               pivot=np.zeros(3) if pivot is None else np.asarray(pivot, float))
+        node = gltf.nodes[ch.target.node]
+        values = r.accessor(sm.output).astype(np.float64)
+        if ch.target.path == "weights":
+            names = (gltf.meshes[node.mesh].extras or {}).get("targetNames", [])
+            values = values.reshape(len(times), len(names))
+            for j, n in enumerate(names):
+                out.weights[n] = values[:, j]
+        elif ch.target.path == "rotation":
+            out.rotations[node.name] = values.reshape(len(times), 4)
+    return out
 
 
 # --- reading -------------------------------------------------------------------------

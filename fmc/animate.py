@@ -1,0 +1,140 @@
+"""FAP streams to files people can play: an animated GLB and a preview GIF.
+
+The GLB keeps the head as :func:`mpeg4.io.write_glb` writes it and adds one animation:
+the weights of the morph targets that stand for the FAT's mesh tables (from
+:func:`mpeg4.fat.morph_weights`, so the viewer reproduces the piecewise-linear rule inside
+each interval), the eyeballs' rotations about their centres, and the head's rotation
+about 7.1 (a ``pivot`` node). FaceDefTransforms a glTF node cannot carry (a translation or
+a scale of a part inside the head mesh) are left out and named in the returned warnings.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from mpeg4.errors import InputError
+from mpeg4.fat import _key, fap_unit, fat_to_morph_targets, morph_weights, rotation_matrix
+from mpeg4.head import Head
+from mpeg4.io.gltf import GlbAnimation
+
+__all__ = ["stream_animation", "render_preview_frames", "write_gif", "play_stream"]
+
+
+def stream_animation(head: Head, stream) -> tuple[GlbAnimation, list[str]]:
+    """Keyframes of a :class:`mpeg4.io.fap.FapStream` for ``head`` (values held between frames).
+
+    Returns
+    -------
+    animation : GlbAnimation
+    warnings : list of str
+    """
+    if head.fat is None or not len(head.fat):
+        raise InputError("the head has no Facial Animation Tables to play",
+                         fix="author them first: fmc author HEAD -o HEAD_WITH_FAT.glb")
+    held = stream.held()
+    if held.n_frames == 0:
+        raise InputError("the stream has no frames", fix="give a .fap file with at least one frame")
+    times = (held.frame_numbers - held.frame_numbers[0]) / stream.fps
+    _, specs = fat_to_morph_targets(head.fat, head.fapu)
+    weights = {s.target: np.zeros(held.n_frames) for s in specs}
+    rotations = {}
+    movers = {"pivot": None}
+    for name in ("eye_l", "eye_r"):
+        if name in head.parts and head.parts[name].centre is not None:
+            movers[name] = name
+    for node in movers:
+        rotations[node] = np.tile([0.0, 0.0, 0.0, 1.0], (held.n_frames, 1))
+    warnings = set()
+    for i in range(held.n_frames):
+        values = held.frame_values(i)
+        for target, w in morph_weights(specs, values).items():
+            weights[target][i] = w
+        mats = {node: np.eye(3) for node in movers}
+        for k in sorted(values, key=_key):
+            key = _key(k)
+            table = head.fat.get(key)
+            if table is None or not values[k]:
+                continue
+            unit = fap_unit(key[0], head.fapu)
+            for t in table.transforms:
+                node = "pivot" if t.part is None else t.part
+                if t.kind != "rotation" or node not in movers:
+                    warnings.add(f"FAP {key[0]}: a {t.kind} of {t.part or 'the head'} cannot be a glTF node "
+                                 "animation and is left out")
+                    continue
+                mats[node] = rotation_matrix(t.axis, t.amount * values[k] * unit) @ mats[node]
+        for node, m in mats.items():
+            rotations[node][i] = Rotation.from_matrix(m).as_quat()
+    pivot = head.fp_position("7.1") if "7.1" in head.feature_points else np.zeros(3)
+    # Drop channels that never move.
+    weights = {k: v for k, v in weights.items() if np.any(v)}
+    rotations = {k: q for k, q in rotations.items() if np.abs(q[:, :3]).max() > 0}
+    return GlbAnimation(times, weights, rotations, pivot, name=stream.name), sorted(warnings)
+
+
+def render_preview_frames(head: Head, stream, size: int = 400, max_fps: float = 15.0, yaw_deg: float = 15.0):
+    """Offscreen renders of a stream: (frames list of (H, W, 3) uint8, frame duration s)."""
+    from mpeg4.preview import head_meshes
+    from mpeg4.render import Camera, render
+
+    from .play import Player
+
+    player = Player(head)
+    held = stream.held()
+    step = max(1, int(round(stream.fps / max_fps)))
+    _, fps = head.fp_array()
+    cam = Camera.fit(fps, int(size * 0.8), size, yaw_deg=yaw_deg, pitch_deg=5, margin=0.1, focal_px=2.5 * size)
+    frames = []
+    for i in range(0, held.n_frames, step):
+        parts = player.part_vertices(player.vertices(held.frame_values(i)))
+        frames.append(render(head_meshes(head, parts), cam))
+    return frames, step / stream.fps
+
+
+def write_gif(frames, duration: float, path) -> str:
+    """An animated GIF (atomic write)."""
+    import io
+
+    from PIL import Image
+
+    from mpeg4.io.atomic import atomic_write
+
+    images = [Image.fromarray(f).convert("P", palette=Image.Palette.ADAPTIVE, colors=128) for f in frames]
+    buf = io.BytesIO()
+    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=int(round(duration * 1000)),
+                   loop=0)
+    with atomic_write(path, "wb") as f:
+        f.write(buf.getvalue())
+    return os.fspath(path)
+
+
+def play_stream(head_path, stream_path, out_dir, preview: bool = True,
+                progress: Callable[[str], None] | None = None) -> dict[str, Path]:
+    """``fmc play``: the animated GLB (and a preview GIF) of a FAP stream on a head."""
+    from mpeg4.io import load_head, read_fap, write_glb
+
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    head = load_head(head_path)
+    stream = read_fap(stream_path)
+    say(f"{stream.n_frames} frames at {stream.fps:g} fps")
+    anim, warnings = stream_animation(head, stream)
+    for w in warnings:
+        say(f"warning: {w}")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"animation": out / "animation.glb"}
+    write_glb(head, paths["animation"], animation=anim)
+    if preview:
+        say("rendering the preview")
+        frames, duration = render_preview_frames(head, stream)
+        paths["preview"] = out / "preview.gif"
+        write_gif(frames, duration, paths["preview"])
+    say(f"done in {time.perf_counter() - t0:.1f} s")
+    return paths
