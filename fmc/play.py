@@ -10,10 +10,17 @@ as :func:`mpeg4.fat.apply_fat` does it, only without touching the tables again.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator, Mapping
 
 import numpy as np
 import scipy.sparse as sp
+
+try:  # y += A x in place (scipy's own kernel); plain products otherwise
+    from scipy.sparse._sparsetools import csc_matvec as _csc_matvec
+except ImportError:  # pragma: no cover - other scipy layouts
+    def _csc_matvec(n_row, n_col, indptr, indices, data, x, y):
+        y += sp.csc_matrix((data, indices, indptr), shape=(n_row, n_col)) @ x
 
 from mpeg4.errors import InputError
 from mpeg4.fat import _key, fap_unit, rotation_matrix, signed_overlaps
@@ -86,9 +93,16 @@ class Player:
         for key, mesh_cols in self.tables.items():
             for sign in (1, -1):
                 chosen = [(c, b, j) for c, b, j in mesh_cols if (b[j + 1] > 0 if sign > 0 else b[j] < 0)]
-                if chosen:
-                    self._blocks[key, sign] = (self.matrix[:, [c for c, _, _ in chosen]].tocsc(),
-                                               [(b, j) for _, b, j in chosen])
+                if not chosen:
+                    continue
+                borders, pick = [], []
+                for _, b, j in chosen:  # each distinct set of borders once per frame
+                    n = next((n for n, known in enumerate(borders) if known == tuple(float(x) for x in b)),
+                             len(borders))
+                    if n == len(borders):
+                        borders.append(tuple(float(x) for x in b))
+                    pick.append((n, j))
+                self._blocks[key, sign] = (self.matrix[:, [c for c, _, _ in chosen]].tocsc(), borders, pick)
         # Whole-head transforms go last, after the parts' own (apply_fat's order).
         self.transforms.sort(key=lambda kt: (kt[1].part is None, kt[0]))
 
@@ -113,15 +127,11 @@ class Player:
             block = self._blocks.get((key, 1 if value > 0 else -1))
             if block is None:
                 continue
-            matrix, cols = block
-            cache: dict[int, np.ndarray] = {}
-            w = np.empty(len(cols))
-            for n, (borders, j) in enumerate(cols):
-                s = cache.get(id(borders))
-                if s is None:
-                    s = cache[id(borders)] = signed_overlaps(borders, value)
-                w[n] = s[j]
-            flat += matrix @ w
+            matrix, borders, pick = block
+            overlaps = [_overlaps(b, value) for b in borders]
+            w = np.array([overlaps[n][j] for n, j in pick])
+            # y += A x in place, without a temporary the size of the whole head.
+            _csc_matvec(matrix.shape[0], matrix.shape[1], matrix.indptr, matrix.indices, matrix.data, w, flat)
         out = out_t.T  # (N, 3) view
         if self.transforms:
             vals = dict(keys)
@@ -161,3 +171,23 @@ def _affine(t, value: float, unit: float) -> tuple[np.ndarray, np.ndarray]:
         return np.eye(3), t.amount * value * unit
     a = np.diag(1.0 + t.amount * value * unit)
     return a, t.centre - a @ t.centre
+
+
+def _overlaps(borders: tuple[float, ...], value: float) -> list[float]:
+    """:func:`mpeg4.fat.signed_overlaps` on plain floats (a frame needs a handful of them,
+    where numpy's per-call cost would dominate)."""
+    n = len(borders) - 1
+    out = []
+    for k in range(n):
+        lo, hi = borders[k], borders[k + 1]
+        if k == 0 and lo < 0:
+            lo = -math.inf
+        if k == n - 1 and hi > 0:
+            hi = math.inf
+        if value > 0:
+            out.append(max(0.0, min(value, hi) - max(0.0, lo)))
+        elif value < 0:
+            out.append(0.0 - max(0.0, min(0.0, hi) - max(value, lo)))
+        else:
+            out.append(0.0)
+    return out

@@ -58,3 +58,20 @@ def test_plays_a_fap_stream_with_held_values(head):
 def test_head_without_tables():
     with pytest.raises(InputError, match="no Facial Animation Tables"):
         Player(load_generic_head())
+
+
+def test_fast_overlaps_equal_the_reference_rule():
+    from fmc.play import _overlaps
+    from mpeg4.fat import signed_overlaps
+
+    rng = np.random.default_rng(3)
+    for _ in range(300):
+        n = int(rng.integers(1, 5))
+        b = np.sort(rng.choice(np.arange(-1000, 1001, 50), n + 1, replace=False)).astype(float)
+        if not b[0] <= 0 <= b[-1]:
+            b[0 if b[0] > 0 else -1] = 0.0
+            b = np.sort(b)
+        if len(np.unique(b)) != len(b):
+            continue
+        for value in (float(rng.uniform(-2000, 2000)), 0.0, float(b[0]), float(b[-1])):
+            np.testing.assert_allclose(_overlaps(tuple(b), value), signed_overlaps(b, value), atol=1e-12)
