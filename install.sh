@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")"
 
 need=()
-for pkg in libegl1 libgl1-mesa-dri libgbm1; do
+for pkg in libegl1 libgl1-mesa-dri libgbm1 espeak-ng; do
   dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
 done
 if [ ${#need[@]} -gt 0 ]; then

@@ -23,7 +23,7 @@ from mpeg4.fat import _key, fap_unit, fat_to_morph_targets, morph_weights, rotat
 from mpeg4.head import Head
 from mpeg4.io.gltf import GlbAnimation
 
-__all__ = ["stream_animation", "render_preview_frames", "write_gif", "play_stream"]
+__all__ = ["stream_animation", "render_preview_frames", "write_gif", "play_stream", "say"]
 
 
 def stream_animation(head: Head, stream) -> tuple[GlbAnimation, list[str]]:
@@ -137,4 +137,40 @@ def play_stream(head_path, stream_path, out_dir, preview: bool = True,
         paths["preview"] = out / "preview.gif"
         write_gif(frames, duration, paths["preview"])
     say(f"done in {time.perf_counter() - t0:.1f} s")
+    return paths
+
+
+def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True,
+        progress: Callable[[str], None] | None = None) -> dict[str, Path]:
+    """``fmc say``: speak ``text`` on a head — speech.wav, speech.fap, animation.glb, preview.gif.
+
+    Phonemes and audio come from espeak-ng (:mod:`fmc.speech`), visemes are coarticulated
+    by dominance functions (:mod:`fmc.coarticulation`) and played through the head's FATs.
+    """
+    from mpeg4.io import load_head, write_fap, write_glb
+
+    from .coarticulation import speech_stream
+    from .speech import synthesize, write_wav
+
+    say_ = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    head = load_head(head_path)
+    utterance = synthesize(text, voice=voice)
+    say_(f"{len(utterance.phonemes)} phonemes, {utterance.duration:.2f} s of speech")
+    stream = speech_stream(utterance.phonemes, utterance.duration)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"audio": out / "speech.wav", "stream": out / "speech.fap", "animation": out / "animation.glb"}
+    write_wav(utterance, paths["audio"])
+    write_fap(stream, paths["stream"])
+    anim, warnings = stream_animation(head, stream)
+    for w in warnings:
+        say_(f"warning: {w}")
+    write_glb(head, paths["animation"], animation=anim)
+    if preview:
+        say_("rendering the preview")
+        frames, duration = render_preview_frames(head, stream, max_fps=25.0)
+        paths["preview"] = out / "preview.gif"
+        write_gif(frames, duration, paths["preview"])
+    say_(f"done in {time.perf_counter() - t0:.1f} s")
     return paths

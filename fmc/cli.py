@@ -67,6 +67,20 @@ def play(head: Path = typer.Argument(..., help="Head with animation tables (.glb
         typer.echo(f"{kind}: {path}")
 
 
+@app.command()
+def say(head: Path = typer.Argument(..., help="Head with animation tables (.glb; see fmc author)."),
+        text: str = typer.Argument(..., help="What to say."),
+        out: Path = typer.Option(Path("say_out"), "-o", "--out", help="Output folder."),
+        voice: str = typer.Option("en", help="espeak-ng voice (en, en-us, de, fr, ...)."),
+        preview: bool = typer.Option(True, help="Also render preview.gif.")) -> None:
+    """Speak a sentence: speech.wav, speech.fap (coarticulated visemes), animation.glb, preview.gif."""
+    from fmc.animate import say as say_text
+
+    for kind, path in say_text(head, text, out, voice=voice, preview=preview,
+                               progress=lambda m: typer.echo(f"fmc: {m}", err=True)).items():
+        typer.echo(f"{kind}: {path}")
+
+
 @app.command("fap-info")
 def fap_info(stream: Path = typer.Argument(..., help="MPEG-4 .fap text stream.")) -> None:
     """Check a .fap stream and describe it: frames, rate, duration and the FAPs it drives."""

@@ -531,11 +531,12 @@ def _read_own(r: _Reader, ext: dict) -> Head:
     head = Head(parts, fps, own, metadata=ext.get("metadata") or {})
     fat_ext = ext.get("fat")
     if fat_ext is not None:
-        specs = [MorphSpec(**s) for s in fat_ext["targets"]]
+        # pygltflib also drops empty lists from extras: every key may be missing.
+        specs = [MorphSpec(**s) for s in fat_ext.get("targets", [])]
         transforms = FAT()
         for k in fat_ext.get("tables", []):
             transforms.add(FaceDefTable(int(k[0]), int(k[1])))
-        for t in fat_ext["transforms"]:
+        for t in fat_ext.get("transforms", []):
             key = (t["fap"], t["high_level"])
             if key not in transforms:
                 transforms.add(FaceDefTable(*key))
