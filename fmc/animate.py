@@ -114,7 +114,7 @@ def write_gif(frames, duration: float, path) -> str:
     return os.fspath(path)
 
 
-def play_stream(head_path, stream_path, out_dir, preview: bool = True,
+def play_stream(head_path, stream_path, out_dir, preview: bool = True, lenient: bool = False,
                 progress: Callable[[str], None] | None = None) -> dict[str, Path]:
     """``fmc play``: the animated GLB (and a preview GIF) of a FAP stream on a head."""
     from mpeg4.io import load_head, read_fap, write_glb
@@ -122,7 +122,7 @@ def play_stream(head_path, stream_path, out_dir, preview: bool = True,
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
     head = load_head(head_path)
-    stream = read_fap(stream_path)
+    stream = read_fap(stream_path, lenient=lenient)
     say(f"{stream.n_frames} frames at {stream.fps:g} fps")
     anim, warnings = stream_animation(head, stream)
     for w in warnings:

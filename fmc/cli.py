@@ -58,11 +58,13 @@ def author(head: Path = typer.Argument(..., help="Head with feature points and s
 def play(head: Path = typer.Argument(..., help="Head with animation tables (.glb; see fmc author)."),
          stream: Path = typer.Argument(..., help="MPEG-4 .fap stream."),
          out: Path = typer.Option(Path("play_out"), "-o", "--out", help="Output folder."),
-         preview: bool = typer.Option(True, help="Also render preview.gif.")) -> None:
+         preview: bool = typer.Option(True, help="Also render preview.gif."),
+         lenient: bool = typer.Option(False, help="Accept a header frame count that disagrees with the body.")
+         ) -> None:
     """Play a .fap stream on a head: animation.glb (morph weights and node rotations) and preview.gif."""
     from fmc.animate import play_stream
 
-    for kind, path in play_stream(head, stream, out, preview=preview,
+    for kind, path in play_stream(head, stream, out, preview=preview, lenient=lenient,
                                   progress=lambda m: typer.echo(f"fmc: {m}", err=True)).items():
         typer.echo(f"{kind}: {path}")
 
@@ -82,11 +84,13 @@ def say(head: Path = typer.Argument(..., help="Head with animation tables (.glb;
 
 
 @app.command("fap-info")
-def fap_info(stream: Path = typer.Argument(..., help="MPEG-4 .fap text stream.")) -> None:
+def fap_info(stream: Path = typer.Argument(..., help="MPEG-4 .fap text stream."),
+             lenient: bool = typer.Option(False, help="Accept a header frame count that disagrees with the body.")
+             ) -> None:
     """Check a .fap stream and describe it: frames, rate, duration and the FAPs it drives."""
     from mpeg4.io.fap import describe_fap, read_fap
 
-    typer.echo(describe_fap(read_fap(stream)))
+    typer.echo(describe_fap(read_fap(stream, lenient=lenient)))
 
 
 def main() -> None:

@@ -14,9 +14,10 @@ FAP one value in FAPU (or AU for rotations).
 
 The reader is tolerant of what real files do: float values, comment lines anywhere, blank
 lines, tabs, CRLF line ends, frames with no FAP set, frame numbers starting at 1 (or any
-increasing numbering), header versions 2.0/2.1/2.2, a file path as the name, and a frame
-count in the header that disagrees with the frames present (the frames win; the header's
-count is kept in ``declared_frames``). Anything else is an error naming the line.
+increasing numbering), header versions 2.0/2.1/2.2 and a file path as the name. A frame
+count in the header that disagrees with the frames present is an error, or with
+``lenient=True`` the frames win (the header's count is kept in ``declared_frames``).
+Anything else is an error naming the line.
 
 An unmasked FAP is *unset* (NaN) in :attr:`FapStream.values`; :meth:`FapStream.held` gives the
 common player reading, each FAP keeping its last value (0 before its first).
@@ -155,8 +156,12 @@ def _number(token: str, where: str, what: str) -> float:
     return x
 
 
-def parse_fap(text: str, where: str = "<string>") -> FapStream:
-    """Parse the text of a ``.fap`` file; ``where`` names it in error messages."""
+def parse_fap(text: str, where: str = "<string>", lenient: bool = False) -> FapStream:
+    """Parse the text of a ``.fap`` file; ``where`` names it in error messages.
+
+    A header frame count that disagrees with the frames in the body is an error unless
+    ``lenient`` (then the body wins and the header's count is kept in ``declared_frames``).
+    """
     lines = [(k + 1, line.split()) for k, line in enumerate(re.split(r"\r\n|\r|\n", text))]
     lines = [(n, toks) for n, toks in lines if toks and not toks[0].startswith("#")]
     if not lines:
@@ -229,13 +234,17 @@ def parse_fap(text: str, where: str = "<string>") -> FapStream:
         exps.append(e)
         k += 2
     n = len(frames)
+    if int(declared) != n and not lenient:
+        raise InputError(f"the header says {int(declared)} frames but the file holds {n}", where=f"{where}, line {n0}",
+                         fix="correct the frame count (the header's last field), or read it leniently "
+                             "(--lenient) to trust the frames")
     return FapStream(fps, np.array(frames, dtype=np.int64), np.array(vals).reshape(n, N_FAPS),
                      np.array(vis).reshape(n, 4), np.array(exps).reshape(n, 6), name=name or "stream",
                      version=version, declared_frames=None if int(declared) == n else int(declared))
 
 
-def read_fap(path: str | os.PathLike) -> FapStream:
-    """Read a ``.fap`` file (errors name the file and line)."""
+def read_fap(path: str | os.PathLike, lenient: bool = False) -> FapStream:
+    """Read a ``.fap`` file (errors name the file and line; ``lenient`` as :func:`parse_fap`)."""
     path = require_file(path, "FAP stream")
     try:
         with open(path, encoding="utf-8", errors="strict") as f:
@@ -243,7 +252,7 @@ def read_fap(path: str | os.PathLike) -> FapStream:
     except UnicodeDecodeError:
         with open(path, encoding="latin-1") as f:  # names with accents in old files
             text = f.read()
-    return parse_fap(text, where=path)
+    return parse_fap(text, where=path, lenient=lenient)
 
 
 def _fmt(x: float) -> str:

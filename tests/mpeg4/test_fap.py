@@ -31,7 +31,9 @@ def test_files_in_the_wild():
             "\r\n"
             f"{vis}\r\n2\t4 7 40 0\t1 63 6 10 0 0\t-12.5\r\n"
             "# trailing comment\r\n")
-    s = parse_fap(text, where="wild.fap")
+    with pytest.raises(InputError, match=r"wild.fap, line 2: the header says 5 frames but the file holds 2"):
+        parse_fap(text, where="wild.fap")
+    s = parse_fap(text, where="wild.fap", lenient=True)
     assert s.version == "2.2" and s.name == "C:\\anim\\take 3.fap" and s.fps == 30.0
     assert s.n_frames == 2 and s.declared_frames == 5
     assert s.frame_numbers.tolist() == [1, 2]
