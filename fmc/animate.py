@@ -23,7 +23,7 @@ from mpeg4.fat import _key, fap_unit, fat_to_morph_targets, morph_weights, rotat
 from mpeg4.head import Head
 from mpeg4.io.gltf import GlbAnimation
 
-__all__ = ["stream_animation", "render_preview_frames", "write_gif", "play_stream", "say"]
+__all__ = ["stream_animation", "render_preview_frames", "write_gif", "play_stream", "say", "animate_timeline"]
 
 
 def stream_animation(head: Head, stream) -> tuple[GlbAnimation, list[str]]:
@@ -170,6 +170,37 @@ def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True,
     if preview:
         say_("rendering the preview")
         frames, duration = render_preview_frames(head, stream, max_fps=25.0)
+        paths["preview"] = out / "preview.gif"
+        write_gif(frames, duration, paths["preview"])
+    say_(f"done in {time.perf_counter() - t0:.1f} s")
+    return paths
+
+
+def animate_timeline(head_path, timeline_path, out_dir, preview: bool = True,
+                     progress: Callable[[str], None] | None = None) -> dict[str, Path]:
+    """``fmc animate``: blend a timeline of actions (:mod:`fmc.actions`) and play it on a
+    head — timeline.fap, animation.glb, preview.gif."""
+    from mpeg4.io import load_head, write_fap, write_glb
+
+    from .actions import read_timeline
+
+    say_ = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    timeline = read_timeline(timeline_path)
+    head = load_head(head_path)
+    stream = timeline.stream()
+    say_(f"{len(timeline.actions)} actions, {stream.n_frames} frames at {stream.fps:g} fps")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {"stream": out / "timeline.fap", "animation": out / "animation.glb"}
+    write_fap(stream, paths["stream"])
+    anim, warnings = stream_animation(head, stream)
+    for w in warnings:
+        say_(f"warning: {w}")
+    write_glb(head, paths["animation"], animation=anim)
+    if preview:
+        say_("rendering the preview")
+        frames, duration = render_preview_frames(head, stream)
         paths["preview"] = out / "preview.gif"
         write_gif(frames, duration, paths["preview"])
     say_(f"done in {time.perf_counter() - t0:.1f} s")

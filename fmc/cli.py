@@ -83,6 +83,19 @@ def say(head: Path = typer.Argument(..., help="Head with animation tables (.glb;
         typer.echo(f"{kind}: {path}")
 
 
+@app.command()
+def animate(head: Path = typer.Argument(..., help="Head with animation tables (.glb; see fmc author)."),
+            timeline: Path = typer.Argument(..., help="Timeline of actions (JSON; see fmc.actions)."),
+            out: Path = typer.Option(Path("animate_out"), "-o", "--out", help="Output folder."),
+            preview: bool = typer.Option(True, help="Also render preview.gif.")) -> None:
+    """Blend a timeline of expressions, visemes and FAP snapshots: timeline.fap, animation.glb, preview.gif."""
+    from fmc.animate import animate_timeline
+
+    for kind, path in animate_timeline(head, timeline, out, preview=preview,
+                                       progress=lambda m: typer.echo(f"fmc: {m}", err=True)).items():
+        typer.echo(f"{kind}: {path}")
+
+
 @app.command("fap-info")
 def fap_info(stream: Path = typer.Argument(..., help="MPEG-4 .fap text stream."),
              lenient: bool = typer.Option(False, help="Accept a header frame count that disagrees with the body.")
