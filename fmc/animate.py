@@ -140,12 +140,14 @@ def play_stream(head_path, stream_path, out_dir, preview: bool = True, lenient: 
     return paths
 
 
-def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True,
-        progress: Callable[[str], None] | None = None) -> dict[str, Path]:
+def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True, eyes: bool = True,
+        seed: int = 0, progress: Callable[[str], None] | None = None) -> dict[str, Path]:
     """``fmc say``: speak ``text`` on a head — speech.wav, speech.fap, animation.glb, preview.gif.
 
     Phonemes and audio come from espeak-ng (:mod:`fmc.speech`), visemes are coarticulated
-    by dominance functions (:mod:`fmc.coarticulation`) and played through the head's FATs.
+    by dominance functions (:mod:`fmc.coarticulation`) and played through the head's FATs;
+    with ``eyes`` the eyes blink and look around (:mod:`fmc.eyes`, seeded by ``seed``),
+    looking at the listener while speaking.
     """
     from mpeg4.io import load_head, write_fap, write_glb
 
@@ -158,6 +160,14 @@ def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True,
     utterance = synthesize(text, voice=voice)
     say_(f"{len(utterance.phonemes)} phonemes, {utterance.duration:.2f} s of speech")
     stream = speech_stream(utterance.phonemes, utterance.duration)
+    if eyes:
+        from .eyes import eyes_alive
+
+        voiced = [p for p in utterance.phonemes if p.viseme]
+        speaking = [(voiced[0].start, voiced[-1].end)] if voiced else []
+        span = (stream.n_frames - 1) / stream.fps
+        for k, v in eyes_alive(span, stream.fps, seed=seed, speaking=speaking).items():
+            stream.values[:, k - 1] = v[:stream.n_frames]
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"audio": out / "speech.wav", "stream": out / "speech.fap", "animation": out / "animation.glb"}

@@ -74,11 +74,13 @@ def say(head: Path = typer.Argument(..., help="Head with animation tables (.glb;
         text: str = typer.Argument(..., help="What to say."),
         out: Path = typer.Option(Path("say_out"), "-o", "--out", help="Output folder."),
         voice: str = typer.Option("en", help="espeak-ng voice (en, en-us, de, fr, ...)."),
-        preview: bool = typer.Option(True, help="Also render preview.gif.")) -> None:
+        preview: bool = typer.Option(True, help="Also render preview.gif."),
+        eyes: bool = typer.Option(True, help="Blinks and gaze shifts (seeded)."),
+        seed: int = typer.Option(0, help="Seed of the eyes' random timings.")) -> None:
     """Speak a sentence: speech.wav, speech.fap (coarticulated visemes), animation.glb, preview.gif."""
     from fmc.animate import say as say_text
 
-    for kind, path in say_text(head, text, out, voice=voice, preview=preview,
+    for kind, path in say_text(head, text, out, voice=voice, preview=preview, eyes=eyes, seed=seed,
                                progress=lambda m: typer.echo(f"fmc: {m}", err=True)).items():
         typer.echo(f"{kind}: {path}")
 
