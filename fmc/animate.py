@@ -141,13 +141,16 @@ def play_stream(head_path, stream_path, out_dir, preview: bool = True, lenient: 
 
 
 def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True, eyes: bool = True,
-        seed: int = 0, progress: Callable[[str], None] | None = None) -> dict[str, Path]:
+        seed: int = 0, expression: str | int | None = None, intensity: float = 0.7,
+        progress: Callable[[str], None] | None = None) -> dict[str, Path]:
     """``fmc say``: speak ``text`` on a head — speech.wav, speech.fap, animation.glb, preview.gif.
 
     Phonemes and audio come from espeak-ng (:mod:`fmc.speech`), visemes are coarticulated
     by dominance functions (:mod:`fmc.coarticulation`) and played through the head's FATs;
     with ``eyes`` the eyes blink and look around (:mod:`fmc.eyes`, seeded by ``seed``),
-    looking at the listener while speaking.
+    looking at the listener while speaking; with ``expression`` (a name or number) the
+    face holds that expression at ``intensity`` while it speaks, and bilabials still close
+    the lips (:func:`fmc.coarticulation.close_bilabials`).
     """
     from mpeg4.io import load_head, write_fap, write_glb
 
@@ -160,6 +163,15 @@ def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True, 
     utterance = synthesize(text, voice=voice)
     say_(f"{len(utterance.phonemes)} phonemes, {utterance.duration:.2f} s of speech")
     stream = speech_stream(utterance.phonemes, utterance.duration)
+    if expression is not None:
+        from .actions import Action, _lookup, blend
+        from mpeg4.catalogue import EXPRESSIONS
+
+        e = _lookup(EXPRESSIONS, expression, "expression", "--expression")
+        act = Action({(2, e): 63.0}, 0.0, (stream.n_frames - 1) / stream.fps, intensity=intensity, attack=0.3,
+                     release=0.3)
+        level = blend([act], stream.frame_numbers / stream.fps)[(2, e)]
+        stream.expression[:] = np.c_[np.full(stream.n_frames, e), level, np.zeros((stream.n_frames, 4))]
     if eyes:
         from .eyes import eyes_alive
 
@@ -168,6 +180,11 @@ def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True, 
         span = (stream.n_frames - 1) / stream.fps
         for k, v in eyes_alive(span, stream.fps, seed=seed, speaking=speaking).items():
             stream.values[:, k - 1] = v[:stream.n_frames]
+    if head.fat is not None and len(head.fat):
+        from .coarticulation import close_bilabials
+        from .play import Player
+
+        close_bilabials(Player(head), stream, utterance.phonemes)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"audio": out / "speech.wav", "stream": out / "speech.fap", "animation": out / "animation.glb"}

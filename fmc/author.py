@@ -69,13 +69,16 @@ _LOWER_LIP = {"2.3", "2.8", "2.9", "8.2", "8.7", "8.8"}
 def lip_side(head: Head, part: str) -> np.ndarray | None:
     """(N,) +1 for vertices of ``part`` above the mouth line, −1 below, 0 beyond the corners.
 
-    The mouth line is the inner lip contour 2.5–2.7–2.2–2.6–2.4 (its upper side, which
-    meets the lower one in the neutral face), piecewise linear in x.
+    The mouth line runs through the lip corners 2.5, 2.4 and midway between the inner
+    contours of the two lips (2.7/2.9, 2.2/2.3, 2.6/2.8), piecewise linear in x, so the
+    inner-lip points of each lip fall clearly on their own side.
     """
-    need = ("2.5", "2.7", "2.2", "2.6", "2.4")
+    need = ("2.5", "2.7", "2.9", "2.2", "2.3", "2.6", "2.8", "2.4")
     if part != "skin" or not all(i in head.feature_points for i in need):
         return None
-    pts = np.array([head.fp_position(i) for i in need])
+    p = {i: head.fp_position(i) for i in need}
+    pts = np.array([p["2.5"], 0.5 * (p["2.7"] + p["2.9"]), 0.5 * (p["2.2"] + p["2.3"]), 0.5 * (p["2.6"] + p["2.8"]),
+                    p["2.4"]])
     v = head.parts[part].vertices
     line_y = np.interp(v[:, 0], pts[:, 0], pts[:, 1])
     inside = (v[:, 0] > pts[0, 0]) & (v[:, 0] < pts[-1, 0])
@@ -173,7 +176,8 @@ ADJACENT = {"mouth": {"cheeks", "nose"}, "cheeks": {"mouth", "eyes"}, "eyes": {"
 
 def unrelated(fp_id: str, ids: list[str]) -> np.ndarray:
     """Mask of the FPs ``ids`` that must stay still when ``fp_id``'s FAP acts: those of
-    regions neither the same nor adjacent, and those on the other side of the face."""
+    regions neither the same nor adjacent, those on the other side of the face, and those
+    of the other lip."""
     side = FEATURE_POINTS[fp_id].side
     region = region_of(fp_id)
     out = []
@@ -181,7 +185,9 @@ def unrelated(fp_id: str, ids: list[str]) -> np.ndarray:
         s = FEATURE_POINTS[i].side
         other_side = side != "C" and s != "C" and s != side
         r = region_of(i)
-        out.append((r != region and r not in ADJACENT[region]) or other_side)
+        # The lips move apart: a FAP of one lip must leave the other lip's points still.
+        other_lip = (fp_id in _UPPER_LIP and i in _LOWER_LIP) or (fp_id in _LOWER_LIP and i in _UPPER_LIP)
+        out.append((r != region and r not in ADJACENT[region]) or other_side or other_lip)
     return np.array(out)
 
 

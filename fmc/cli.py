@@ -76,11 +76,15 @@ def say(head: Path = typer.Argument(..., help="Head with animation tables (.glb;
         voice: str = typer.Option("en", help="espeak-ng voice (en, en-us, de, fr, ...)."),
         preview: bool = typer.Option(True, help="Also render preview.gif."),
         eyes: bool = typer.Option(True, help="Blinks and gaze shifts (seeded)."),
-        seed: int = typer.Option(0, help="Seed of the eyes' random timings.")) -> None:
+        seed: int = typer.Option(0, help="Seed of the eyes' random timings."),
+        expression: str = typer.Option(None, help="Hold an expression while speaking (joy, sadness, anger, fear, "
+                                                  "disgust, surprise)."),
+        intensity: float = typer.Option(0.7, help="Intensity of --expression, 0..1.")) -> None:
     """Speak a sentence: speech.wav, speech.fap (coarticulated visemes), animation.glb, preview.gif."""
     from fmc.animate import say as say_text
 
     for kind, path in say_text(head, text, out, voice=voice, preview=preview, eyes=eyes, seed=seed,
+                               expression=expression, intensity=intensity,
                                progress=lambda m: typer.echo(f"fmc: {m}", err=True)).items():
         typer.echo(f"{kind}: {path}")
 

@@ -24,7 +24,7 @@ import numpy as np
 
 from mpeg4.io.fap import FapStream
 
-__all__ = ["Dominance", "GROUPS", "group_of", "viseme_weights", "speech_stream"]
+__all__ = ["Dominance", "GROUPS", "group_of", "viseme_weights", "speech_stream", "LIP_PAIRS", "close_bilabials"]
 
 
 @dataclass(frozen=True)
@@ -96,3 +96,64 @@ def speech_stream(phonemes, duration: float, fps: float = 50.0, name: str = "spe
     blend = np.where(w1 + w2 > 0, 63.0 * w1 / (w1 + w2), 63.0)
     vis = np.c_[v1, v2, np.round(blend, 3), np.zeros(n)]
     return FapStream(fps, np.arange(n), np.full((n, 68), np.nan), viseme=vis, name=name)
+
+
+#: Lip FAP pairs that close the mouth: (upper lip FAP, its FP, lower lip FAP, its FP).
+LIP_PAIRS = ((4, "2.2", 5, "2.3"), (8, "2.6", 10, "2.8"), (9, "2.7", 11, "2.9"))
+_CLOSING_FAPS = (4, 5, 8, 9, 10, 11, 16, 17)
+
+
+def close_bilabials(player, stream: FapStream, phonemes, iterations: int = 6) -> FapStream:
+    """Make the lips meet where a bilabial (p, b, m) holds the mouth, whatever else moves it.
+
+    An expression or an open neighbour can hold the jaw open across a bilabial; its
+    viseme alone then cannot close the lips. For every frame where bilabials have a share
+    ``s`` of the coarticulated mix, the inner-lip gaps are measured through the head's own
+    tables and the lip FAPs (4/5, 8/10, 9/11: upper lip down, lower lip up, half each;
+    16/17: lower lip forward, upper lip back) close ``s`` of the gap, vertically and in
+    depth, by secant steps (the tables are piecewise linear in the values).
+
+    Parameters
+    ----------
+    player : fmc.play.Player
+        Of the head that will play the stream.
+    stream : FapStream
+        Frames numbered from 0 at ``stream.fps``; changed in place and returned.
+    phonemes : sequence of fmc.speech.Phoneme
+    """
+    head = player.head
+    mns = head.fapu.MNS0 / 1024.0
+    times = stream.frame_numbers / stream.fps
+    share = viseme_weights(phonemes, times)[:, 1] / 63.0
+    held = stream.held()
+    for f in _CLOSING_FAPS:  # set in every frame, so no player's notion of "unset" matters
+        stream.values[:, f - 1] = held.values[:, f - 1]
+    for i in np.flatnonzero(share > 0.02):
+        values = held.frame_values(i)
+        # Secant steps on each closing pair (the tables are piecewise linear in the value,
+        # so two or three steps land on the target).
+        history: dict = {}
+        free = None  # gaps before any closing, for this frame
+        for _ in range(iterations):
+            parts = player.part_vertices(player.vertices(values))
+            gaps = {fu: head.fp_position(pu, parts)[1] - head.fp_position(pl, parts)[1] for fu, pu, fl, pl in LIP_PAIRS}
+            gaps[16] = head.fp_position("2.2", parts)[2] - head.fp_position("2.3", parts)[2]
+            if free is None:
+                free = dict(gaps)
+            # The lips close by the bilabial's share of the way from where the face holds
+            # them to touching (no gap, same depth).
+            errors = {f: gaps[f] - (1.0 - share[i]) * free[f] for f in gaps}
+            for f, err in errors.items():
+                v = values.get(f, 0.0)
+                prev = history.get(f)
+                if prev is not None and abs(err - prev[1]) > 1e-9:
+                    step = -err * (v - prev[0]) / (err - prev[1])
+                else:
+                    step = 0.5 * err / mns
+                history[f] = (v, err)
+                partner = {4: 5, 8: 10, 9: 11, 16: 17}[f]
+                values[f] = v + step
+                values[partner] = values.get(partner, 0.0) + (step if f != 16 else -step)
+        for f in _CLOSING_FAPS:
+            stream.values[i, f - 1] = values.get(f, 0.0)
+    return stream

@@ -60,7 +60,7 @@ def test_most_faps_come_from_the_sculpted_shapes_where_shapes_exist(authored):
     _, report = authored
     routes = {n: r.route for n, r in report.items()}
     assert routes[3] == "shapes" and routes[14] == "shapes" and routes[15] == "shapes"  # the jaw
-    assert sum(r == "shapes" for r in routes.values()) >= 15
+    assert sum(r == "shapes" for r in routes.values()) >= 12
     assert all(routes[n] == "transform" for n in (23, 24, 25, 26, 48, 49, 50))
 
 

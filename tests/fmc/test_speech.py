@@ -88,3 +88,30 @@ def test_fmc_say_writes_audio_stream_and_animation(head, tmp_path):
     assert abs(stream.duration - seconds) < 0.05
     anim = read_glb_animation(paths["animation"])
     assert anim.times[-1] == pytest.approx((stream.n_frames - 1) / stream.fps, abs=1e-4)
+
+
+@pytest.mark.parametrize("expression", [6, 1])  # surprise (jaw dropped), joy
+def test_bilabial_closes_the_lips_inside_an_expression(expression):
+    from fmc.author import author_from_shapes
+    from fmc.coarticulation import close_bilabials
+
+    h = load_generic_head()
+    fat, _ = author_from_shapes(h)
+    fat.update(author_high_level(h))
+    h.fat = fat
+    player = Player(h)
+    u = synthesize("happy")
+    p = next(x for x in u.phonemes if x.symbol == "p")
+    s = speech_stream(u.phonemes, u.duration)
+    s.expression[:] = [expression, 50, 0, 0, 0, 0]
+    i = int(np.argmin(np.abs(s.frame_numbers / s.fps - p.centre)))
+
+    def gap(stream, k):
+        parts = player.part_vertices(player.vertices(stream.held().frame_values(k)))
+        return np.linalg.norm(h.fp_position("2.2", parts) - h.fp_position("2.3", parts))
+
+    assert gap(s, i) > 3e-3  # the expression alone holds the lips apart
+    close_bilabials(player, s, u.phonemes)
+    assert gap(s, i) < 1e-3
+    a = next(x for x in u.phonemes if x.symbol == "a")
+    assert gap(s, int(np.argmin(np.abs(s.frame_numbers / s.fps - a.centre)))) > 1e-2  # the vowel stays open
