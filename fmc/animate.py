@@ -23,7 +23,8 @@ from mpeg4.fat import _key, fap_unit, fat_to_morph_targets, morph_weights, rotat
 from mpeg4.head import Head
 from mpeg4.io.gltf import GlbAnimation
 
-__all__ = ["stream_animation", "render_preview_frames", "write_gif", "play_stream", "say", "animate_timeline"]
+__all__ = ["stream_animation", "render_preview_frames", "write_gif", "write_video", "play_stream", "say",
+           "animate_timeline"]
 
 
 def stream_animation(head: Head, stream) -> tuple[GlbAnimation, list[str]]:
@@ -114,6 +115,37 @@ def write_gif(frames, duration: float, path) -> str:
     return os.fspath(path)
 
 
+def write_video(frames, fps: float, path, audio=None) -> str:
+    """An H.264 MP4 of ``frames`` at ``fps``, with ``audio`` (a WAV path) muxed in when
+    given; encoded by the ffmpeg that the imageio-ffmpeg package ships (atomic write)."""
+    import subprocess
+    import tempfile
+
+    import imageio_ffmpeg
+
+    h, w = frames[0].shape[:2]
+    h2, w2 = h - h % 2, w - w % 2  # yuv420p wants even sizes
+    folder = os.path.dirname(os.path.abspath(os.fspath(path)))
+    os.makedirs(folder, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".mp4", dir=folder)
+    os.close(fd)
+    cmd = [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-loglevel", "error", "-f", "rawvideo", "-pix_fmt", "rgb24",
+           "-s", f"{w2}x{h2}", "-r", f"{fps:g}", "-i", "-"]
+    if audio is not None:
+        cmd += ["-i", os.fspath(audio), "-c:a", "aac", "-shortest"]
+    cmd += ["-c:v", "libx264", "-pix_fmt", "yuv420p", "-movflags", "+faststart", tmp]
+    try:
+        data = b"".join(np.ascontiguousarray(f[:h2, :w2, :3]).tobytes() for f in frames)
+        run = subprocess.run(cmd, input=data, capture_output=True)
+        if run.returncode != 0:
+            raise RuntimeError(f"ffmpeg failed: {run.stderr.decode(errors='replace')[-300:]}")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return os.fspath(path)
+
+
 def play_stream(head_path, stream_path, out_dir, preview: bool = True, lenient: bool = False,
                 progress: Callable[[str], None] | None = None) -> dict[str, Path]:
     """``fmc play``: the animated GLB (and a preview GIF) of a FAP stream on a head."""
@@ -195,10 +227,12 @@ def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True, 
         say_(f"warning: {w}")
     write_glb(head, paths["animation"], animation=anim)
     if preview:
-        say_("rendering the preview")
+        say_("rendering the preview (GIF, and MP4 with the speech)")
         frames, duration = render_preview_frames(head, stream, max_fps=25.0)
         paths["preview"] = out / "preview.gif"
         write_gif(frames, duration, paths["preview"])
+        paths["video"] = out / "preview.mp4"
+        write_video(frames, 1.0 / duration, paths["video"], audio=paths["audio"])
     say_(f"done in {time.perf_counter() - t0:.1f} s")
     return paths
 

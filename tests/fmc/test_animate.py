@@ -86,3 +86,23 @@ def test_fmc_play_writes_glb_and_gif(head, tmp_path):
     gif = Image.open(paths["preview"])
     assert gif.n_frames >= 6
     assert read_glb_animation(paths["animation"]).weights
+
+
+def test_video_with_audio(tmp_path):
+    import subprocess
+    import wave
+
+    import imageio_ffmpeg
+
+    from fmc.animate import write_video
+
+    with wave.open(str(tmp_path / "a.wav"), "wb") as w:
+        w.setnchannels(1)
+        w.setsampwidth(2)
+        w.setframerate(16000)
+        w.writeframes((3000 * np.sin(np.arange(16000) / 10)).astype("<i2").tobytes())
+    frames = [np.full((61, 81, 3), k * 20, np.uint8) for k in range(10)]
+    path = write_video(frames, 10.0, tmp_path / "v.mp4", audio=tmp_path / "a.wav")
+    info = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-i", path], capture_output=True,
+                          text=True).stderr
+    assert "Video: h264" in info and "Audio: aac" in info and "80x60" in info
