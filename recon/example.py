@@ -40,7 +40,7 @@ def run_example(out_dir: str | os.PathLike, progress: Callable[[str], None] | No
     dict of str to Path
         ``head`` (GLB with animation tables), ``fdp`` (feature points and FAPU),
         ``preview`` (PNG), and with ``speak`` the ``say/`` files: ``audio``, ``stream``,
-        ``animation``, ``speech_preview``.
+        ``animation``, ``speech_preview`` (GIF), ``speech_video`` (MP4 with the sound).
     """
     from fmc.animate import say as say_text
     from fmc.author import author_from_shapes, author_high_level
@@ -68,6 +68,6 @@ def run_example(out_dir: str | os.PathLike, progress: Callable[[str], None] | No
         say(f"speaking: {EXAMPLE_SENTENCE!r}")
         spoken = say_text(paths["head"], EXAMPLE_SENTENCE, out / "say", progress=lambda m: say(f"  {m}"))
         paths.update(audio=spoken["audio"], stream=spoken["stream"], animation=spoken["animation"],
-                     speech_preview=spoken["preview"])
+                     speech_preview=spoken["preview"], speech_video=spoken["video"])
     say(f"done in {time.perf_counter() - t0:.1f} s")
     return paths
