@@ -23,8 +23,8 @@ from mpeg4.fat import _key, fap_unit, fat_to_morph_targets, morph_weights, rotat
 from mpeg4.head import Head
 from mpeg4.io.gltf import GlbAnimation
 
-__all__ = ["stream_animation", "render_preview_frames", "write_gif", "write_video", "play_stream", "say",
-           "animate_timeline"]
+__all__ = ["stream_animation", "render_preview_frames", "write_gif", "write_video", "write_animation", "play_stream",
+           "say", "animate_timeline"]
 
 
 def stream_animation(head: Head, stream) -> tuple[GlbAnimation, list[str]]:
@@ -146,28 +146,42 @@ def write_video(frames, fps: float, path, audio=None) -> str:
     return os.fspath(path)
 
 
+def write_animation(head: Head, stream, out_dir, preview: bool = True, audio=None, max_fps: float = 15.0,
+                    progress: Callable[[str], None] | None = None) -> dict[str, Path]:
+    """Write ``animation.glb`` for a stream on a head, and with ``preview`` a GIF (and an MP4
+    with ``audio`` muxed in when an audio file is given) into ``out_dir``."""
+    from mpeg4.io import write_glb
+
+    say_ = progress or (lambda msg: None)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    anim, warnings = stream_animation(head, stream)
+    for w in warnings:
+        say_(f"warning: {w}")
+    paths = {"animation": out / "animation.glb"}
+    write_glb(head, paths["animation"], animation=anim)
+    if preview:
+        say_("rendering the preview" + (" (GIF, and MP4 with the sound)" if audio is not None else ""))
+        frames, duration = render_preview_frames(head, stream, max_fps=max_fps)
+        paths["preview"] = out / "preview.gif"
+        write_gif(frames, duration, paths["preview"])
+        if audio is not None:
+            paths["video"] = out / "preview.mp4"
+            write_video(frames, 1.0 / duration, paths["video"], audio=audio)
+    return paths
+
+
 def play_stream(head_path, stream_path, out_dir, preview: bool = True, lenient: bool = False,
                 progress: Callable[[str], None] | None = None) -> dict[str, Path]:
     """``fmc play``: the animated GLB (and a preview GIF) of a FAP stream on a head."""
-    from mpeg4.io import load_head, read_fap, write_glb
+    from mpeg4.io import load_head, read_fap
 
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
     head = load_head(head_path)
     stream = read_fap(stream_path, lenient=lenient)
     say(f"{stream.n_frames} frames at {stream.fps:g} fps")
-    anim, warnings = stream_animation(head, stream)
-    for w in warnings:
-        say(f"warning: {w}")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = {"animation": out / "animation.glb"}
-    write_glb(head, paths["animation"], animation=anim)
-    if preview:
-        say("rendering the preview")
-        frames, duration = render_preview_frames(head, stream)
-        paths["preview"] = out / "preview.gif"
-        write_gif(frames, duration, paths["preview"])
+    paths = write_animation(head, stream, out_dir, preview=preview, progress=say)
     say(f"done in {time.perf_counter() - t0:.1f} s")
     return paths
 
@@ -184,7 +198,7 @@ def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True, 
     face holds that expression at ``intensity`` while it speaks, and bilabials still close
     the lips (:func:`fmc.coarticulation.close_bilabials`).
     """
-    from mpeg4.io import load_head, write_fap, write_glb
+    from mpeg4.io import load_head, write_fap
 
     from .coarticulation import speech_stream
     from .speech import synthesize, write_wav
@@ -219,20 +233,11 @@ def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True, 
         close_bilabials(Player(head), stream, utterance.phonemes)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = {"audio": out / "speech.wav", "stream": out / "speech.fap", "animation": out / "animation.glb"}
+    paths = {"audio": out / "speech.wav", "stream": out / "speech.fap"}
     write_wav(utterance, paths["audio"])
     write_fap(stream, paths["stream"])
-    anim, warnings = stream_animation(head, stream)
-    for w in warnings:
-        say_(f"warning: {w}")
-    write_glb(head, paths["animation"], animation=anim)
-    if preview:
-        say_("rendering the preview (GIF, and MP4 with the speech)")
-        frames, duration = render_preview_frames(head, stream, max_fps=25.0)
-        paths["preview"] = out / "preview.gif"
-        write_gif(frames, duration, paths["preview"])
-        paths["video"] = out / "preview.mp4"
-        write_video(frames, 1.0 / duration, paths["video"], audio=paths["audio"])
+    paths.update(write_animation(head, stream, out, preview=preview, audio=paths["audio"], max_fps=25.0,
+                                 progress=say_))
     say_(f"done in {time.perf_counter() - t0:.1f} s")
     return paths
 
@@ -241,7 +246,7 @@ def animate_timeline(head_path, timeline_path, out_dir, preview: bool = True,
                      progress: Callable[[str], None] | None = None) -> dict[str, Path]:
     """``fmc animate``: blend a timeline of actions (:mod:`fmc.actions`) and play it on a
     head — timeline.fap, animation.glb, preview.gif."""
-    from mpeg4.io import load_head, write_fap, write_glb
+    from mpeg4.io import load_head, write_fap
 
     from .actions import read_timeline
 
@@ -253,16 +258,8 @@ def animate_timeline(head_path, timeline_path, out_dir, preview: bool = True,
     say_(f"{len(timeline.actions)} actions, {stream.n_frames} frames at {stream.fps:g} fps")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    paths = {"stream": out / "timeline.fap", "animation": out / "animation.glb"}
+    paths = {"stream": out / "timeline.fap"}
     write_fap(stream, paths["stream"])
-    anim, warnings = stream_animation(head, stream)
-    for w in warnings:
-        say_(f"warning: {w}")
-    write_glb(head, paths["animation"], animation=anim)
-    if preview:
-        say_("rendering the preview")
-        frames, duration = render_preview_frames(head, stream)
-        paths["preview"] = out / "preview.gif"
-        write_gif(frames, duration, paths["preview"])
+    paths.update(write_animation(head, stream, out, preview=preview, progress=say_))
     say_(f"done in {time.perf_counter() - t0:.1f} s")
     return paths

@@ -5,20 +5,14 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from fmc.animate import play_stream, stream_animation
-from fmc.author import author_from_shapes, author_high_level
 from fmc.play import Player
-from mpeg4.generic_head import load_generic_head
 from mpeg4.io import FapStream, read_glb, write_fap, write_glb
 from mpeg4.io.gltf import read_glb_animation
 
 
 @pytest.fixture(scope="module")
-def head():
-    h = load_generic_head()
-    fat, _ = author_from_shapes(h)
-    fat.update(author_high_level(h))
-    h.fat = fat
-    return h
+def head(authored_head):
+    return authored_head
 
 
 def _stream():

@@ -3,7 +3,6 @@
 import numpy as np
 import pytest
 
-from fmc.author import author_from_shapes, author_high_level
 from fmc.play import Player
 from mpeg4 import InputError, apply_fat
 from mpeg4.generic_head import load_generic_head
@@ -11,12 +10,8 @@ from mpeg4.io import parse_fap
 
 
 @pytest.fixture(scope="module")
-def head():
-    h = load_generic_head()
-    fat, _ = author_from_shapes(h)
-    fat.update(author_high_level(h))
-    h.fat = fat
-    return h
+def head(authored_head):
+    return authored_head
 
 
 def test_player_equals_apply_fat(head):
