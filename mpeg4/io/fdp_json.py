@@ -111,33 +111,53 @@ def validate_fdp(data, where: str = "fdp.json") -> None:
         raise InputError(f"expected a JSON object, found {type(data).__name__}", where=where,
                          fix="an fdp.json file is one object with 'format' and 'version'")
     if data.get("format") != FORMAT:
-        raise InputError(f"'format' is {data.get('format')!r}, expected '{FORMAT}'", where=where,
+        raise InputError(f"'format' is {data.get('format')!r}, expected '{FORMAT}'", where=f"{where}, format",
                          fix="is this an fdp.json file? It starts with {\"format\": \"mpeg4-fdp\", \"version\": 1}")
-    if data.get("version") not in VERSIONS:
-        raise InputError(f"version {data.get('version')!r} is not one this reader knows ({', '.join(map(str, VERSIONS))})",
+    known = ", ".join(map(str, VERSIONS))
+    if "version" not in data:
+        raise InputError(f"no 'version' (this reader knows version {known})", where=f"{where}, top level",
+                         fix='add "version": 1 after "format"')
+    if data["version"] not in VERSIONS or isinstance(data["version"], bool):
+        raise InputError(f"version {data['version']!r} is not one this reader knows ({known})",
                          where=f"{where}, version", fix="update this tool, or write the file with a matching version")
     # Ids first: an unknown id is the likeliest mistake and deserves its own message.
     for key in ("points3d", "bindings", "texcoords"):
-        for fp_id in (data.get(key) or {}):
-            check_fp_id(fp_id, where=f"{where}, {key}")
-    for name, view in (data.get("views") or {}).items():
+        if isinstance(data.get(key), dict):
+            for fp_id in data[key]:
+                _check_id(fp_id, f"{where}, {key}")
+    for name, view in (data.get("views") or {}).items() if isinstance(data.get("views"), dict) else ():
         if isinstance(view, dict):
             for key in ("points", "confidence"):
-                for fp_id in (view.get(key) or {}):
-                    check_fp_id(fp_id, where=f"{where}, views.{name}.{key}")
+                if isinstance(view.get(key), dict):
+                    for fp_id in view[key]:
+                        _check_id(fp_id, f"{where}, views.{name}.{key}")
     validator = jsonschema.Draft202012Validator(schema())
     error = jsonschema.exceptions.best_match(validator.iter_errors(data))
     if error is not None:
+        path = list(error.absolute_path)
+        # A bad coordinate is reported for its whole point: "expected [x, y] numbers, found ...".
+        depth = 4 if path[:1] == ["views"] and path[2:3] == ["points"] else 2
+        if len(path) >= depth and (depth == 4 or path[0] in ("points3d", "texcoords")):
+            point = data
+            for k in path[:depth]:
+                point = point[k]
+            names = {"points3d": "x, y, z", "texcoords": "u, v"}.get(path[0], "x, y")
+            found = json.dumps(point)
+            raise InputError(f"expected [{names}] numbers, found {found if len(found) < 60 else found[:57] + '...'}",
+                             where=f"{where}, {_json_place(path[:depth])}", fix=_fix_for(error))
         found = json.dumps(error.instance)
         found = found if len(found) < 60 else found[:57] + "..."
         raise InputError(f"{error.message if len(error.message) < 120 else error.message[:117] + '...'} "
                          f"(found {found})", where=f"{where}, {_json_place(error.absolute_path)}",
                          fix=_fix_for(error))
+    # Strict JSON has no NaN or infinity; Python's reader accepts them, so check here.
+    bad = _non_finite(data, [])
+    if bad is not None:
+        raise InputError("not a finite number (NaN or infinity)", where=f"{where}, {_json_place(bad)}",
+                         fix="give a finite number, or leave the point out if it is unknown")
     for name, view in (data.get("views") or {}).items():
         w, h = view.get("width"), view.get("height")
         for fp_id, (x, y) in view.get("points", {}).items():
-            if not (np.isfinite(x) and np.isfinite(y)):
-                raise InputError("pixel is not a finite number", where=f'{where}, views.{name}.points["{fp_id}"]')
             if w and h and not (-0.5 <= x <= w - 0.5 and -0.5 <= y <= h - 0.5):
                 raise InputError(f"pixel ({x:g}, {y:g}) lies outside the {w}x{h} image",
                                  where=f'{where}, views.{name}.points["{fp_id}"]',
@@ -149,55 +169,82 @@ def validate_fdp(data, where: str = "fdp.json") -> None:
     _check_sides(data, where)
 
 
+def _check_id(fp_id: str, where: str) -> None:
+    try:
+        check_fp_id(fp_id, where=where)
+    except InputError as e:
+        raise InputError(f"{e.what}: not one of the {len(FP_IDS)} MPEG-4 feature points", where=where,
+                         fix=e.fix) from None
+
+
+def _non_finite(value, path: list) -> list | None:
+    """JSON path of the first NaN or infinity in ``value`` (Python's json reads both)."""
+    if isinstance(value, float) and not np.isfinite(value):
+        return path
+    if isinstance(value, dict):
+        items = value.items()
+    elif isinstance(value, list):
+        items = enumerate(value)
+    else:
+        return None
+    for k, v in items:
+        found = _non_finite(v, path + [k])
+        if found is not None:
+            return found
+    return None
+
+
 def _fix_for(error) -> str:
     path = list(error.absolute_path)
     if path and path[0] == "views" and "points" in path:
         return "each point is [x, y] in pixels"
     if path and path[0] in ("points3d",):
         return "each 3D point is [x, y, z] in metres"
+    if path and path[0] in ("texcoords",):
+        return "each texture coordinate is [u, v] with v = 0 at the bottom of the image"
     if error.validator == "additionalProperties":
         return "remove the unknown key or check its spelling against mpeg4/data/fdp.schema.json"
     return "see mpeg4/data/fdp.schema.json for the layout"
 
 
 def _check_sides(data: dict, where: str) -> None:
-    """Left points must be on the face's left: x > partner's x in 3D and in a front photo.
+    """Left points must be on the face's left: larger x than their partner, in 3D and in a
+    front photo (where the face's left appears on the image's right).
 
-    Some files in the wild label by the viewer's left/right (mirrored), for the whole file or
-    just for the ears (10.x); say which, rather than let a head come out inside out.
+    Some files in the wild name sides by the viewer's left and right, for every pair or just
+    for the ears (10.x); say which convention the file seems to use rather than build a head
+    whose sides are swapped.
     """
-    checks = [("points3d", data.get("points3d") or {}, "has larger x in 3D")]
-    front = ((data.get("views") or {}).get("front") or {}).get("points") or {}
-    checks.append(("views.front.points", front, "appears right of its partner in the front photo"))
-    for place, pts, meaning in checks:
-        reversed_, total = [], []
-        for fp_id in FP_IDS:
-            fp = FEATURE_POINTS[fp_id]
-            if fp.side == "L" and fp_id in pts and fp.mirror in pts:
-                total.append(fp_id)
-                if pts[fp_id][0] < pts[fp.mirror][0]:
-                    reversed_.append(fp_id)
+    checks = [("points3d", data.get("points3d") or {}, "3D x"),
+              ("views.front.points", ((data.get("views") or {}).get("front") or {}).get("points") or {},
+               "front-photo x")]
+    for place, pts, axis in checks:
+        pairs = [i for i in FP_IDS if FEATURE_POINTS[i].side == "L" and i in pts and FEATURE_POINTS[i].mirror in pts]
+        # Equal x is not evidence either way (a point on the midline marked twice).
+        reversed_ = [i for i in pairs if pts[i][0] < pts[FEATURE_POINTS[i].mirror][0]]
         if not reversed_:
             continue
-        ears = [i for i in total if i.startswith("10.")]
-        ears_rev = [i for i in reversed_ if i.startswith("10.")]
-        if ears and set(ears_rev) == set(ears) and len(ears_rev) >= 2 and set(reversed_) == set(ears_rev) \
-                and len(total) > len(ears):
-            raise InputError("the ear points 10.x are on the opposite sides (the file seems to label the ears by "
-                             f"the viewer's left/right): {', '.join(ears_rev)}", where=f"{where}, {place}",
-                             fix="swap each ear pair (10.1<->10.2, 10.3<->10.4, 10.5<->10.6, 10.7<->10.8, "
-                                 "10.9<->10.10); the odd ids are the face's left ear")
-        if len(reversed_) > 0.5 * len(total) and len(total) >= 3:
-            raise InputError(f"{len(reversed_)} of {len(total)} left/right pairs are on the wrong sides: the file "
-                             "seems to name sides by the viewer's left and right", where=f"{where}, {place}",
+        named = ", ".join(f"{i}/{FEATURE_POINTS[i].mirror}" for i in reversed_)
+        others_fine = [i for i in pairs if not i.startswith("10.")]
+        if others_fine and all(i.startswith("10.") for i in reversed_):
+            raise InputError(f"ear pairs {named} are on the opposite sides while all {len(others_fine)} non-ear "
+                             "pairs are on the correct sides: the file seems to label the ears by the viewer's "
+                             "left/right (mirrored convention)",
+                             where=f"{where}, {place}",
+                             fix="swap the ids of each listed ear pair; odd ids (10.1, 10.3, ...) are on the "
+                                 "face's own left ear, which has the larger x")
+        if 2 * len(reversed_) > len(pairs):
+            photo = " (or the photo is mirrored, as selfie cameras do)" if place.startswith("views") else ""
+            raise InputError(f"{len(reversed_)} of {len(pairs)} left/right pairs have the left point at the "
+                             f"smaller {axis}: the file seems to use the mirrored (viewer's left/right) "
+                             f"convention{photo}",
+                             where=f"{where}, {place}",
                              fix="MPEG-4 names sides by the face's own left (3.5 is the face's left pupil, on the "
-                                 "viewer's right); swap every left/right pair")
-        worst = reversed_[0]
-        raise InputError(f"left point {worst} {meaning.replace('has larger', 'should have larger')} than "
-                         f"{FEATURE_POINTS[worst].mirror}, but it does not" if "3D" in meaning else
-                         f"left point {worst} should appear right of {FEATURE_POINTS[worst].mirror} in the front "
-                         "photo, but it does not", where=f"{where}, {place}",
-                         fix=f"swap {worst} and {FEATURE_POINTS[worst].mirror}")
+                                 "viewer's right in a front photo); swap the ids of every left/right pair")
+        raise InputError(f"left/right pairs {named} have the left point at the smaller {axis}",
+                         where=f"{where}, {place}",
+                         fix="swap the ids of each listed pair (the first id of each is the face's own left point, "
+                             "which has the larger x)")
 
 
 def parse_fdp(data: dict, where: str = "fdp.json") -> FdpFile:
@@ -263,7 +310,7 @@ def fdp_to_dict(fdp: FdpFile) -> dict:
     if fdp.fapu is not None:
         out["fapu"] = {k: _num(v) for k, v in fdp.fapu.as_dict().items()}
     if fdp.metadata:
-        out["metadata"] = fdp.metadata
+        out["metadata"] = _plain(fdp.metadata)
     return out
 
 
@@ -272,9 +319,22 @@ def write_fdp_json(path: str | os.PathLike, fdp: FdpFile) -> str:
     data = fdp_to_dict(fdp)
     validate_fdp(json.loads(json.dumps(data)), where=os.fspath(path))
     with atomic_write(path, "w", encoding="utf-8") as f:
-        json.dump(data, f, indent=1)
+        json.dump(data, f, indent=1, allow_nan=False)
         f.write("\n")
     return os.fspath(path)
+
+
+def _plain(value):
+    """``value`` with numpy arrays and scalars (and tuples) turned into JSON types."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
 
 
 def fdp_from_head(head: Head) -> FdpFile:
@@ -288,9 +348,8 @@ def fdp_from_head(head: Head) -> FdpFile:
         uv = head.parts[b.part].uv
         if uv is not None:
             texcoords[i] = np.asarray(b.weights) @ uv[list(b.vertices)]
-    meta = {k: v for k, v in head.metadata.items() if k not in ("ict_vertex_ids",)}
     return FdpFile(points3d=head.fp_positions(), bindings=dict(head.feature_points), texcoords=texcoords,
-                   fapu=fapu, metadata=meta)
+                   fapu=fapu, metadata=_plain(head.metadata))
 
 
 def apply_fdp(head: Head, fdp: FdpFile, tol: float = 1e-4, where: str = "fdp.json") -> Head:
@@ -301,7 +360,10 @@ def apply_fdp(head: Head, fdp: FdpFile, tol: float = 1e-4, where: str = "fdp.jso
     """
     out = head.copy()
     for i, b in fdp.bindings.items():
-        out._check_binding(i, b)
+        try:
+            out._check_binding(i, b)
+        except InputError as e:
+            raise InputError(e.what, where=f'{where}, bindings["{i}"]', fix=e.fix) from None
         out.feature_points[i] = b
         if i in fdp.points3d:
             d = float(np.linalg.norm(out.fp_position(i) - fdp.points3d[i]))

@@ -37,10 +37,25 @@ def _png_bytes(image: np.ndarray) -> bytes:
 def write_obj(head: Head, path: str | os.PathLike) -> list[str]:
     """Write ``head`` as OBJ + MTL + PNGs + ``.fdp.json`` (all atomically).
 
+    Writes ``<stem>.obj`` (one ``o <part>`` / ``usemtl <part>`` group per part, vertices in
+    metres with 10 significant digits, ``vt`` with t = 0 at the bottom of the image as
+    stored), ``<stem>.mtl`` (``Kd`` colour, ``map_Kd`` texture), ``<stem>_<part>.png`` per
+    textured part and ``<stem>.fdp.json`` (feature point bindings, 3D points, FAPU,
+    metadata). No normals are written. Morph targets and animation tables (FAT) cannot be
+    stored in OBJ and are left out; the returned warnings say so.
+
+    Parameters
+    ----------
+    head : Head
+        The head to write.
+    path : str or os.PathLike
+        The ``.obj`` path; the other files take its stem.
+
     Returns
     -------
     list of str
-        Warnings: what OBJ cannot carry (morph targets, animation tables).
+        Warnings: what OBJ cannot carry (morph targets, animation tables); empty if nothing
+        was left out.
     """
     from .fdp_json import fdp_from_head, write_fdp_json
 
@@ -106,7 +121,34 @@ def _read_mtl(path: Path) -> dict[str, dict]:
 
 
 def read_obj(path: str | os.PathLike) -> Head:
-    """Read an OBJ head (with its ``.mtl``, textures and ``.fdp.json`` when present)."""
+    """Read an OBJ head (with its ``.mtl``, textures and ``.fdp.json`` when present).
+
+    Files written by :func:`write_obj` come back exactly: parts in order, vertex order,
+    uv, textures, ``Kd`` colours, eye centres, feature point bindings and metadata from the
+    sidecar (checked against its 3D points). Other OBJ files: one part per ``o``/``g``
+    group (faces before any group form the part ``skin``); polygons are fan-triangulated;
+    ``vn`` and other statements are ignored. A part's vertices are the ``v`` lines of its
+    group when its faces use only those, else the vertices its faces use, in file order.
+    OBJ gives each face corner its own ``vt``; when one vertex is used with several ``vt``
+    (a UV seam) it is duplicated, the copies appended at the end of its part, so every
+    vertex has one uv. A part whose corners are not all textured gets no uv.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.obj`` file.
+
+    Returns
+    -------
+    Head
+        Vertices in the file's units (ours are metres), no morph targets, no FAT.
+
+    Raises
+    ------
+    InputError
+        Missing file, a malformed line (with its number), no faces, an unreadable texture,
+        or a sidecar ``.fdp.json`` that does not fit the mesh.
+    """
     import cv2
 
     path = Path(require_file(path, "head file"))
@@ -127,6 +169,9 @@ def read_obj(path: str | os.PathLike) -> Head:
                     if len(verts[-1]) != 3:
                         raise ValueError
                 elif key == "vt":
+                    if len(toks) < 2:
+                        raise ValueError
+                    # 'vt u' alone is allowed by the format (v defaults to 0).
                     uvs.append([float(x) for x in toks[1:3]] + [0.0] * (2 - len(toks[1:3])))
                 elif key in ("o", "g"):
                     name = "_".join(toks[1:]) or f"part{len(order)}"

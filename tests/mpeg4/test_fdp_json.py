@@ -52,13 +52,23 @@ def test_schema_ships_and_is_used():
 
 def test_head_round_trip_through_bindings(tmp_path):
     head = small_head()
+    head.metadata["fit"] = {"ipd_m": np.float64(0.064), "scale": np.array([1.0, 1.02])}
     fdp = fdp_from_head(head)
+    assert fdp.views == {} and set(fdp.points3d) == set(head.feature_points)
+    b = head.feature_points["2.2"]
+    np.testing.assert_allclose(fdp.points3d["2.2"], np.asarray(b.weights) @ head.skin.vertices[list(b.vertices)],
+                               atol=1e-15)
+    np.testing.assert_allclose(fdp.texcoords["2.2"], np.asarray(b.weights) @ head.skin.uv[list(b.vertices)],
+                               atol=1e-15)
+    assert "3.5" not in fdp.texcoords  # the eyes have no uv
     write_fdp_json(tmp_path / "h.fdp.json", fdp)
     back = read_fdp_json(tmp_path / "h.fdp.json")
     moved = apply_fdp(head, back)
     for i in head.feature_points:
         np.testing.assert_allclose(moved.fp_position(i), head.fp_position(i), atol=1e-9)
     assert back.fapu.ES0 == pytest.approx(head.fapu.ES0, abs=1e-9)
+    assert back.metadata == {"source": "test", "n": 3, "fit": {"ipd_m": 0.064, "scale": [1.0, 1.02]}}
+    assert max(float(np.abs(back.points3d[i] - p).max()) for i, p in fdp.points3d.items()) <= 5e-10
 
 
 def _write(tmp_path, data, text=None):
@@ -74,16 +84,32 @@ def _base():
 
 
 @pytest.mark.parametrize("change, text, message", [
-    (None, '{"format": "mpeg4-fdp", "version": 1,', r"bad.fdp.json: not valid JSON: .* line 1, column"),
-    (lambda d: d.update(version=7), None, r"bad.fdp.json, version: version 7 is not one this reader knows \(1\)"),
+    (None, '{"format": "mpeg4-fdp", "version": 1,', r"bad.fdp.json: not valid JSON: .* line 1, column 38 .*fix: "),
+    (None, '{"format": "mpeg4-fdp",\n "version": 1\n "views": {}}', r"bad.fdp.json: not valid JSON: .* line 3, column 2"),
+    (lambda d: d.update(version=7), None,
+     r"bad.fdp.json, version: version 7 is not one this reader knows \(1\) \(fix: update"),
+    (lambda d: d.pop("version"), None, r"bad.fdp.json, top level: no 'version' \(this reader knows version 1\)"),
     (lambda d: d["views"]["front"]["points"].update({"12.1": [1, 1]}), None,
-     r"bad.fdp.json, views.front.points: unknown feature point '12.1'"),
+     r"bad.fdp.json, views.front.points: unknown feature point '12.1': not one of the 84 MPEG-4 feature points "
+     r"\(fix: .*'group.index'"),
+    (lambda d: d.update(points3d={"3.15": [0, 0, 0]}), None, r"bad.fdp.json, points3d: unknown feature point '3.15'"),
     (lambda d: d["views"]["front"]["points"].update({"2.1": ["12", 3]}), None,
-     r'bad.fdp.json, views.front.points\["2.1"\]\[0\]: .*(fix: each point is \[x, y\] in pixels)'),
+     r'bad.fdp.json, views.front.points\["2.1"\]: expected \[x, y\] numbers, found \["12", 3\] '
+     r'\(fix: each point is \[x, y\] in pixels\)'),
     (lambda d: d["views"]["front"]["points"].update({"2.1": [150, 3]}), None,
-     r'views.front.points\["2.1"\]: pixel \(150, 3\) lies outside the 100x100 image'),
-    (lambda d: d.update(points3d={"9.3": [0, 0]}), None, r'points3d\["9.3"\]: .*fix: each 3D point is \[x, y, z\]'),
-    (lambda d: d.update(format="something"), None, r"'format' is 'something', expected 'mpeg4-fdp'"),
+     r'bad.fdp.json, views.front.points\["2.1"\]: pixel \(150, 3\) lies outside the 100x100 image \(fix: '),
+    (lambda d: d["views"]["front"]["points"].update({"2.1": [10, -0.6]}), None, r"pixel \(10, -0.6\) lies outside"),
+    (lambda d: d.update(points3d={"9.3": [0, 0]}), None,
+     r'bad.fdp.json, points3d\["9.3"\]: expected \[x, y, z\] numbers, found \[0, 0\] .*fix: each 3D point is'),
+    (lambda d: d.update(texcoords={"9.3": [0, 0, 1]}), None, r'texcoords\["9.3"\]: expected \[u, v\] numbers'),
+    (lambda d: d.update(points3d={"9.3": [0, float("nan"), 0]}), None,
+     r'bad.fdp.json, points3d\["9.3"\]\[1\]: not a finite number \(NaN or infinity\) \(fix: '),
+    (lambda d: d["views"]["front"]["points"].update({"2.1": [float("inf"), 3]}), None,
+     r'views.front.points\["2.1"\]\[0\]: not a finite number'),
+    (lambda d: d.update(format="something"), None, r"bad.fdp.json, format: 'format' is 'something', expected 'mpeg4-fdp'"),
+    (lambda d: d.update(colour=1), None, r"bad.fdp.json, top level: Additional properties .*fix: remove the unknown key"),
+    (lambda d: d.update(bindings={"2.1": {"part": "skin", "vertices": [1, 2], "weights": [0.5, 0.6]}}), None,
+     r'bindings\["2.1"\]: 2 vertices with weights summing to 1.1 \(fix: give one weight per vertex'),
 ])
 def test_bad_files_give_one_line_errors(tmp_path, change, text, message):
     data = _base()
@@ -94,19 +120,74 @@ def test_bad_files_give_one_line_errors(tmp_path, change, text, message):
     assert "\n" not in str(e.value)
 
 
-def test_mirrored_labels_are_recognised(tmp_path):
+def _front(**points):
     data = _base()
-    data["views"]["front"]["points"].update({"10.1": [10, 50], "10.2": [90, 50], "10.5": [12, 60], "10.6": [88, 60]})
-    with pytest.raises(InputError, match=r"ear points 10.x are on the opposite sides .*10.1, 10.5"):
+    data["views"]["front"]["points"].update({k.replace("_", "."): v for k, v in points.items()})
+    return data
+
+
+def test_ears_labelled_by_the_viewer_are_recognised(tmp_path):
+    # 10.7/10.8 swapped (the face's left lobe drawn on the image's left) while 3.5/3.6 are right.
+    data = _front(**{"10_7": [20, 70], "10_8": [80, 70]})
+    with pytest.raises(InputError, match=r"views.front.points: ear pairs 10.7/10.8 are on the opposite sides while "
+                                         r"all 1 non-ear pairs .*viewer's left/right.*fix: swap the ids"):
         read_fdp_json(_write(tmp_path, data))
+    data = _front(**{"10_1": [10, 50], "10_2": [90, 50], "10_5": [12, 60], "10_6": [88, 60]})
+    with pytest.raises(InputError, match=r"ear pairs 10.1/10.2, 10.5/10.6 are on the opposite sides"):
+        read_fdp_json(_write(tmp_path, data))
+    # Same in 3D: x > 0 is the face's left.
+    data = _base()
+    data["points3d"] = {"3.5": [0.03, 0, 0], "3.6": [-0.03, 0, 0], "10.7": [-0.07, -0.02, 0], "10.8": [0.07, -0.02, 0]}
+    with pytest.raises(InputError, match=r"points3d: ear pairs 10.7/10.8 are on the opposite sides"):
+        read_fdp_json(_write(tmp_path, data))
+
+
+def test_whole_file_in_the_viewers_convention_is_recognised(tmp_path):
     data = _base()
     data["points3d"] = {"3.5": [-0.03, 0, 0], "3.6": [0.03, 0, 0], "8.3": [-0.02, 0, 0], "8.4": [0.02, 0, 0],
-                        "4.1": [-0.01, 0, 0], "4.2": [0.01, 0, 0]}
-    with pytest.raises(InputError, match="seems to name sides by the viewer's left and right"):
+                        "4.1": [-0.01, 0, 0], "4.2": [0.01, 0, 0], "10.7": [-0.07, 0, 0], "10.8": [0.07, 0, 0]}
+    with pytest.raises(InputError, match=r"points3d: 4 of 4 left/right pairs have the left point at the smaller 3D x: "
+                                         r"the file seems to use the mirrored \(viewer's left/right\) convention"):
         read_fdp_json(_write(tmp_path, data))
-    data = _base()
-    data["views"]["front"]["points"].update({"10.1": [90, 50], "10.2": [10, 50]})
-    read_fdp_json(_write(tmp_path, data))  # the face's own convention: accepted
+    data = _front(**{"3_5": [40, 50], "3_6": [60, 50]})
+    with pytest.raises(InputError, match=r"views.front.points: 1 of 1 .*convention \(or the photo is mirrored"):
+        read_fdp_json(_write(tmp_path, data))
+    # A single swapped pair among correct ones is named as such.
+    data = _front(**{"8_3": [30, 80], "8_4": [70, 80], "4_1": [55, 30], "4_2": [45, 30], "4_3": [70, 28],
+                     "4_4": [30, 28]})
+    with pytest.raises(InputError, match=r"left/right pairs 8.3/8.4 have the left point at the smaller front-photo x "
+                                         r"\(fix: swap"):
+        read_fdp_json(_write(tmp_path, data))
+
+
+def test_face_convention_is_accepted(tmp_path):
+    data = _front(**{"10_1": [90, 50], "10_2": [10, 50], "10_7": [85, 70], "10_8": [15, 70]})
+    data["points3d"] = {"3.5": [0.03, 0, 0], "3.6": [-0.03, 0, 0], "10.7": [0.07, 0, 0], "10.8": [-0.07, 0, 0]}
+    back = read_fdp_json(_write(tmp_path, data))
+    assert back.views["front"].points["10.1"][0] == 90 and back.points3d["10.8"][0] == -0.07
+    # The side view cannot tell left from right and is not checked.
+    data["views"]["side"] = {"points": {"10.1": [10, 10], "10.2": [90, 10]}}
+    read_fdp_json(_write(tmp_path, data))
+
+
+def test_apply_fdp_rejects_another_meshs_points(tmp_path):
+    head = small_head()
+    fdp = fdp_from_head(head)
+    fdp.points3d["8.3"] = fdp.points3d["8.3"] + [0, 0.002, 0]
+    with pytest.raises(InputError, match=r'x.fdp.json, bindings\["8.3"\]: feature point 8.3 is bound 2.00 mm away'):
+        apply_fdp(head, fdp, where="x.fdp.json")
+    fdp = fdp_from_head(head)
+    fdp.bindings["2.2"] = FeaturePointBinding("skin", (10_000,), (1.0,))
+    with pytest.raises(InputError, match=r'x.fdp.json, bindings\["2.2"\]: feature point 2.2 is bound to vertex 10000'):
+        apply_fdp(head, fdp, where="x.fdp.json")
+
+
+def test_writer_refuses_nan(tmp_path):
+    fdp = _sample()
+    fdp.points3d["3.6"] = np.array([np.nan, 0, 0])
+    with pytest.raises(InputError, match=r'n.fdp.json, points3d\["3.6"\]\[0\]: not a finite number'):
+        write_fdp_json(tmp_path / "n.fdp.json", fdp)
+    assert not (tmp_path / "n.fdp.json").exists()
 
 
 def test_missing_file(tmp_path):
