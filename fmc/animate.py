@@ -206,6 +206,9 @@ def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True, 
     say_ = progress or (lambda msg: None)
     t0 = time.perf_counter()
     head = load_head(head_path)
+    if head.fat is None or not len(head.fat):
+        raise InputError("the head has no Facial Animation Tables to speak with",
+                         where=os.fspath(head_path), fix="author them first: fmc author HEAD -o HEAD_WITH_FAT.glb")
     utterance = synthesize(text, voice=voice)
     say_(f"{len(utterance.phonemes)} phonemes, {utterance.duration:.2f} s of speech")
     stream = speech_stream(utterance.phonemes, utterance.duration)
