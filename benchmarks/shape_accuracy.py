@@ -84,7 +84,6 @@ def main(argv=None) -> int:
 
     data = np.load(NPZ)
     generic = load_generic_head()
-    n_skin = generic.skin.n_vertices
     results = {}
     t0 = time.perf_counter()
     heat = None

@@ -33,11 +33,11 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from mpeg4.catalogue import EXPRESSIONS, FAPS, VISEMES, fap
+from mpeg4.catalogue import EXPRESSIONS, VISEMES, fap
 from mpeg4.errors import InputError, require_file
 from mpeg4.io.fap import FapStream
 

@@ -23,7 +23,7 @@ except ImportError:  # pragma: no cover - other scipy layouts
         y += sp.csc_matrix((data, indices, indptr), shape=(n_row, n_col)) @ x
 
 from mpeg4.errors import InputError
-from mpeg4.fat import _key, fap_unit, rotation_matrix, signed_overlaps
+from mpeg4.fat import _key, fap_unit, rotation_matrix
 from mpeg4.head import Head
 
 __all__ = ["Player"]

@@ -17,4 +17,12 @@ from .fat import (
 )
 from .head import PART_NAMES, FeaturePointBinding, Head, Part, SparseDisplacement
 
+__all__ = [
+    "ANGLE_UNIT", "EXPRESSIONS", "FAP", "FAPS", "FAPU_DEFINITIONS", "FEATURE_POINTS", "FP_GROUP_SIZES", "FP_IDS",
+    "VISEMES", "Expression", "FeaturePoint", "Viseme", "check_fp_id", "fap", "feature_point", "InputError", "FAPU",
+    "fapu_from_points", "FAT", "FaceDefMesh", "FaceDefTable", "FaceDefTransform", "MorphSpec", "apply_fat",
+    "fat_from_morph_targets", "fat_to_morph_targets", "morph_weights", "PART_NAMES", "FeaturePointBinding", "Head",
+    "Part", "SparseDisplacement",
+]
+
 __version__ = "0.1.0"

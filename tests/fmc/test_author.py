@@ -67,7 +67,6 @@ def test_most_faps_come_from_the_sculpted_shapes_where_shapes_exist(authored):
 def test_lip_split_keeps_the_lips_apart(authored):
     head, _ = authored
     side = lip_side(head, "skin")
-    v = head.skin.vertices
     for fp, expect in (("8.1", 1), ("2.2", 1), ("8.2", -1), ("2.3", -1)):
         b = head.feature_points[fp]
         assert (side[list(b.vertices)] == expect).all() or fp in ("2.2", "2.3")
