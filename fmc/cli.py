@@ -102,6 +102,21 @@ def animate(head: Path = typer.Argument(..., help="Head with animation tables (.
         typer.echo(f"{kind}: {path}")
 
 
+@app.command("clone")
+def clone_cmd(source: Path = typer.Option(..., "--source", help="Head with motion: morph targets and/or FATs (.glb)."),
+              target: Path = typer.Option(..., "--target", help="Head with feature points (.glb, or .obj + fdp.json)."),
+              out: Path = typer.Option(..., "-o", "--out", help="Target with the cloned motion (.glb).")) -> None:
+    """Clone morph targets and Facial Animation Tables from one head onto another (work in progress:
+    exact on itself; see the README for the measured accuracy)."""
+    from fmc.clone import clone
+    from mpeg4.io import load_head, save_head
+
+    head, warnings = clone(load_head(source), load_head(target))
+    for w in warnings:
+        typer.echo(f"fmc: warning: {w}", err=True)
+    typer.echo(save_head(head, out))
+
+
 @app.command("fap-info")
 def fap_info(stream: Path = typer.Argument(..., help="MPEG-4 .fap text stream."),
              lenient: bool = typer.Option(False, help="Accept a header frame count that disagrees with the body.")

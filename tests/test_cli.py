@@ -15,7 +15,7 @@ runner = CliRunner()
 
 
 @pytest.mark.parametrize("app, commands", [(recon_app, ["example", "fit", "preview"]),
-                                           (fmc_app, ["info", "convert", "author", "play", "say", "animate", "fap-info"])])
+                                           (fmc_app, ["info", "convert", "author", "play", "say", "animate", "clone", "fap-info"])])
 def test_help_describes_every_command(app, commands):
     out = runner.invoke(app, ["--help"])
     assert out.exit_code == 0
