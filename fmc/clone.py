@@ -133,7 +133,7 @@ def _lip_class(head: Head, space: np.ndarray) -> np.ndarray:
 
 def interpolate_motion(points: np.ndarray, depth: np.ndarray, src_space: np.ndarray, src_tris: np.ndarray,
                        src_motion: np.ndarray, forbidden: np.ndarray | None = None, k: int = 24,
-                       depth_tol: float = 0.15) -> np.ndarray:
+                       depth_tol: float = 0.25) -> np.ndarray:
     """Barycentric interpolation of per-vertex source motion at 2D points.
 
     Parameters
@@ -231,8 +231,10 @@ def clone_targets(source: Head, target: Head, names=None) -> dict[str, dict[str,
     _, uniq = np.unique(t_fp.round(9), axis=0, return_index=True)
     uniq = np.array([k for k in np.sort(uniq) if abs(s_fp[k, 0]) < 2.0 and abs(t_fp[k, 0]) < 2.0])
     aligned = align_to_source(t_space[:, :2], t_fp[uniq], s_fp[uniq])
-    # Depth in the source's terms: the target radius scaled by the heads' mean radii.
-    depth = t_space[:, 2] * (np.median(s_space[:, 2]) / np.median(t_space[:, 2]))
+    # Depth in the source's terms: the target's radius scaled by the two radii of the nose
+    # tip (the axis sits where the mouth spans the same angle, so radii scale with the mouth).
+    r_nose = [alignment_space(h, h.fp_position("9.3")[None])[0, 2] for h in (source, target)]
+    depth = t_space[:, 2] * (r_nose[0] / r_nose[1])
     # 4: per-target normalised motion of the source skin, interpolated; lips kept apart.
     motion = np.concatenate([source.morph_targets[n]["skin"].dense(len(s_v)) / s_scale
                              if "skin" in source.morph_targets[n] else np.zeros_like(s_v) for n in names], axis=1)
