@@ -10,7 +10,7 @@ The method, after Pandžić, one small function per step:
    a fixed angle on both heads.
 3. :func:`align_to_source` — the target's projected vertices moved so its feature points
    land on the source's: a piecewise-affine warp over a triangulation of the feature
-   points (points outside it follow the nearest triangle's affine map).
+   points (points outside it shift with their nearest feature point).
 4. :func:`interpolate_motion` — each aligned target vertex takes the source's normalised
    motion by barycentric interpolation in the projected source triangle that holds it;
    where several projected triangles hold it (the back of the head folds over the front)
@@ -100,17 +100,22 @@ def alignment_space(head: Head, points: np.ndarray) -> np.ndarray:
 
 def align_to_source(target_2d: np.ndarray, target_fps_2d: np.ndarray, source_fps_2d: np.ndarray) -> np.ndarray:
     """Move (N, 2) target points by the piecewise-affine map taking the target's feature
-    points (K, 2) onto the source's."""
+    points (K, 2) onto the source's (inside their triangulation; outside it, by the offset
+    of the nearest feature point)."""
     tri = Delaunay(target_fps_2d)
     simplex = tri.find_simplex(target_2d)
-    outside = simplex < 0
-    if outside.any():  # the nearest triangle's affine map extends beyond the hull
-        centroids = target_fps_2d[tri.simplices].mean(axis=1)
-        simplex[outside] = cKDTree(centroids).query(target_2d[outside])[1]
-    t = tri.transform[simplex]
-    b = np.einsum("nij,nj->ni", t[:, :2], target_2d - t[:, 2])
+    inside = simplex >= 0
+    out = np.empty_like(target_2d)
+    t = tri.transform[simplex[inside]]
+    b = np.einsum("nij,nj->ni", t[:, :2], target_2d[inside] - t[:, 2])
     bary = np.c_[b, 1 - b.sum(axis=1)]
-    return np.einsum("ni,nij->nj", bary, source_fps_2d[tri.simplices[simplex]])
+    out[inside] = np.einsum("ni,nij->nj", bary, source_fps_2d[tri.simplices[simplex[inside]]])
+    if (~inside).any():
+        # Beyond the feature points an affine map runs away (the neck, far below the chin):
+        # points there shift by their nearest feature point's offset.
+        _, nearest = cKDTree(target_fps_2d).query(target_2d[~inside])
+        out[~inside] = target_2d[~inside] + (source_fps_2d - target_fps_2d)[nearest]
+    return out
 
 
 def _lip_class(head: Head, space: np.ndarray) -> np.ndarray:
@@ -228,8 +233,15 @@ def clone_targets(source: Head, target: Head, names=None) -> dict[str, dict[str,
     s_fp = alignment_space(source, np.array([source.fp_position(i) for i in shared]))[:, :2]
     t_fp = alignment_space(target, np.array([target.fp_position(i) for i in shared]))[:, :2]
     # The face's points only: the top and back of the skull sit where the angle wraps.
-    _, uniq = np.unique(t_fp.round(9), axis=0, return_index=True)
-    uniq = np.array([k for k in np.sort(uniq) if abs(s_fp[k, 0]) < 2.0 and abs(t_fp[k, 0]) < 2.0])
+    # Points that nearly coincide (the inner lips meet in the neutral face) would make
+    # sliver triangles that tear the warp: keep the first of each close pair.
+    uniq = []
+    for k in range(len(shared)):
+        if abs(s_fp[k, 0]) >= 2.0 or abs(t_fp[k, 0]) >= 2.0:
+            continue
+        if all(np.linalg.norm(t_fp[k] - t_fp[j]) > 0.015 and np.linalg.norm(s_fp[k] - s_fp[j]) > 0.015 for j in uniq):
+            uniq.append(k)
+    uniq = np.array(uniq)
     aligned = align_to_source(t_space[:, :2], t_fp[uniq], s_fp[uniq])
     # Depth in the source's terms: the target's radius scaled by the two radii of the nose
     # tip (the axis sits where the mouth spans the same angle, so radii scale with the mouth).
@@ -239,7 +251,7 @@ def clone_targets(source: Head, target: Head, names=None) -> dict[str, dict[str,
     motion = np.concatenate([source.morph_targets[n]["skin"].dense(len(s_v)) / s_scale
                              if "skin" in source.morph_targets[n] else np.zeros_like(s_v) for n in names], axis=1)
     s_lip = _lip_class(source, s_space)
-    t_lip = _lip_class(source, np.c_[aligned, depth])
+    t_lip = _lip_class(target, t_space)  # each head's lips by its own feature points
     tris = source.skin.triangles
     out_motion = np.zeros((len(t_v), motion.shape[1]))
     for who, forbidden in ((t_lip == 0, None), (t_lip > 0, s_lip < 0), (t_lip < 0, s_lip > 0)):
