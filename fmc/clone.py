@@ -3,8 +3,9 @@
 The method, after Pandžić, one small function per step:
 
 1. :func:`normalisation` — every vertex takes the FAPU scale of the region of its nearest
-   feature point (mouth and jaw: x by MW0, y and z by 3·MNS0; the rest of the face: x by
-   ES0, y and z by 2·ENS0), so motion is compared in FAPU terms.
+   feature points (mouth and jaw: x by MW0, y and z by 3·MNS0; the rest of the face: x by
+   ES0, y and z by 2·ENS0; blended smoothly across the border), so motion is compared in
+   FAPU terms.
 2. :func:`alignment_space` — a cylindrical projection about a vertical axis: angle and
    height, the angle 0 at the nose tip, the axis placed at the depth where the mouth spans
    a fixed angle on both heads.
@@ -65,10 +66,15 @@ def normalisation(head: Head, vertices: np.ndarray | None = None) -> np.ndarray:
     f = head.fapu
     ids, pts = _fps(head)
     mouth = np.array([FEATURE_POINTS[i].group in _MOUTH_GROUPS or i in ("9.15", "5.1", "5.2") for i in ids])
-    _, nearest = cKDTree(pts).query(v)
     upper = np.array([f.ES0, 2 * f.ENS0, 2 * f.ENS0])
     lower = np.array([f.MW0, 3 * f.MNS0, 3 * f.MNS0])
-    return np.where(mouth[nearest][:, None], lower, upper)
+    # A soft border between the regions (a hard one flips a vertex's scale wherever the
+    # nearest point changes region, differently on two heads).
+    d_mouth = cKDTree(pts[mouth]).query(v)[0]
+    d_upper = cKDTree(pts[~mouth]).query(v)[0]
+    t = np.clip(0.5 + (d_upper - d_mouth) / (0.2 * f.ES0), 0.0, 1.0)
+    w = t * t * (3 - 2 * t)
+    return w[:, None] * lower + (1 - w[:, None]) * upper
 
 
 def alignment_space(head: Head, points: np.ndarray) -> np.ndarray:
