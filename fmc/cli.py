@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from mpeg4.errors import InputError
+from mpeg4.render import RendererUnavailable
 
 app = typer.Typer(help="Inspect, convert and animate MPEG-4 heads and FAP streams.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
@@ -134,3 +135,6 @@ def main() -> None:
     except InputError as e:
         typer.echo(f"fmc: error: {e}", err=True)
         sys.exit(2)
+    except RendererUnavailable as e:  # a machine without EGL: say what to install
+        typer.echo(f"fmc: error: {e}", err=True)
+        sys.exit(3)

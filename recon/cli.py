@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from mpeg4.errors import InputError
+from mpeg4.render import RendererUnavailable
 
 app = typer.Typer(help="Turn a front and a side photo into a textured, animatable MPEG-4 head.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
@@ -65,3 +66,6 @@ def main() -> None:
     except InputError as e:
         typer.echo(f"recon: error: {e}", err=True)
         sys.exit(2)
+    except RendererUnavailable as e:  # a machine without EGL: say what to install
+        typer.echo(f"recon: error: {e}", err=True)
+        sys.exit(3)
