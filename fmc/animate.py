@@ -19,7 +19,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from mpeg4.errors import InputError
-from mpeg4.fat import _key, fap_unit, fat_to_morph_targets, morph_weights, rotation_matrix
+from mpeg4.fat import _key, fap_unit, fat_to_morph_targets, morph_weights
 from mpeg4.head import Head
 from mpeg4.io.gltf import GlbAnimation
 
@@ -69,7 +69,7 @@ def stream_animation(head: Head, stream) -> tuple[GlbAnimation, list[str]]:
                     warnings.add(f"FAP {key[0]}: a {t.kind} of {t.part or 'the head'} cannot be a glTF node "
                                  "animation and is left out")
                     continue
-                mats[node] = rotation_matrix(t.axis, t.amount * values[k] * unit) @ mats[node]
+                mats[node] = t.affine(values[k], unit)[0] @ mats[node]
         for node, m in mats.items():
             rotations[node][i] = Rotation.from_matrix(m).as_quat()
     pivot = head.fp_position("7.1") if "7.1" in head.feature_points else np.zeros(3)

@@ -23,7 +23,7 @@ except ImportError:  # pragma: no cover - other scipy layouts
         y += sp.csc_matrix((data, indices, indptr), shape=(n_row, n_col)) @ x
 
 from mpeg4.errors import InputError
-from mpeg4.fat import _key, fap_unit, rotation_matrix
+from mpeg4.fat import _key, fap_unit
 from mpeg4.head import Head
 
 __all__ = ["Player"]
@@ -141,7 +141,7 @@ class Player:
                 if not value:
                     continue
                 if t.part is None:
-                    a, b = _affine(t, value, unit)
+                    a, b = t.affine(value, unit)
                     whole = (a, b) if whole is None else (a @ whole[0], a @ whole[1] + b)
                 elif t.part in self.slices:
                     sl = self.slices[t.part]
@@ -160,17 +160,6 @@ class Player:
         held = stream.held()
         for i in range(held.n_frames):
             yield self.vertices(held.frame_values(i))
-
-
-def _affine(t, value: float, unit: float) -> tuple[np.ndarray, np.ndarray]:
-    """``x → A x + b`` of a FaceDefTransform at one value (for composing whole-head moves)."""
-    if t.kind == "rotation":
-        a = rotation_matrix(t.axis, t.amount * value * unit)
-        return a, t.centre - a @ t.centre
-    if t.kind == "translation":
-        return np.eye(3), t.amount * value * unit
-    a = np.diag(1.0 + t.amount * value * unit)
-    return a, t.centre - a @ t.centre
 
 
 def _overlaps(borders: tuple[float, ...], value: float) -> list[float]:

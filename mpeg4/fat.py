@@ -163,14 +163,20 @@ class FaceDefTransform:
         else:
             self.amount = np.broadcast_to(np.asarray(self.amount, dtype=np.float64), (3,)).copy()
 
+    def affine(self, value: float, unit: float) -> tuple[np.ndarray, np.ndarray]:
+        """The motion at FAP value ``value`` as ``x → A x + b``: (3, 3) A and (3,) b, metres."""
+        if self.kind == "rotation":
+            a = rotation_matrix(self.axis, self.amount * value * unit)
+        elif self.kind == "translation":
+            return np.eye(3), self.amount * value * unit
+        else:
+            a = np.diag(1.0 + self.amount * value * unit)
+        return a, self.centre - a @ self.centre
+
     def apply(self, vertices: np.ndarray, value: float, unit: float) -> np.ndarray:
         """Moved copy of (N, 3) ``vertices`` for FAP value ``value``."""
-        if self.kind == "rotation":
-            r = rotation_matrix(self.axis, self.amount * value * unit)
-            return (vertices - self.centre) @ r.T + self.centre
-        if self.kind == "translation":
-            return vertices + self.amount * value * unit
-        return (vertices - self.centre) * (1.0 + self.amount * value * unit) + self.centre
+        a, b = self.affine(value, unit)
+        return vertices @ a.T + b
 
 
 @dataclass
