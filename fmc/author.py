@@ -326,18 +326,14 @@ def _special(head: Head, n: int, value: float):
     """Pupil dilation (scale of the iris ring about the pupil) and tongue roll."""
     fap = FAPS[n]
     if fap.kind == "roll":  # tongue sides up: a falloff on 6.3 and 6.4 along +y
-        unit = 1e-5  # AU: the side lifts by the radius of the tongue times the angle
-        table = FaceDefTable(n)
+        unit = fap_unit(n, head.fapu)  # AU: the side lifts by the tongue's half width times the angle
         lift = {}
         for fp_id in fap.feature_points:
             half_width = abs(head.fp_position(fp_id)[0] - head.fp_position("6.2")[0])
             motion = np.array([0.0, half_width * value * unit, 0.0])
             for part, d in _falloff(head, fp_id, motion).items():
-                prev = lift.get(part)
-                lift[part] = d if prev is None else SparseDisplacement.from_dense(
-                    prev.dense(head.parts[part].n_vertices) + d.dense(head.parts[part].n_vertices), tol=1e-9)
-        table = _mesh_table(head, n, {1.0: lift}, value, unit)
-        return table, FapFit(n, "falloff")
+                lift[part] = lift[part] + d if part in lift else d
+        return _mesh_table(head, n, {1.0: lift}, value, unit), FapFit(n, "falloff")
     # Pupil dilation: the sculpted dilation shape, scaled so that at ``value`` the pupil's
     # diameter grows by value x IRISD (its rim moves by half that); negative values
     # constrict it along the same shape.

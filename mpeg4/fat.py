@@ -380,11 +380,8 @@ def fat_to_morph_targets(fat: FAT, fapu: FAPU) -> tuple[dict[str, dict[str, Spar
             target = targets.setdefault(name, {})
             for m, k, _ in uses:
                 d = SparseDisplacement(m.indices, m.displacements[:, k, :] * unit * spec.reach)
-                if m.part in target:  # two meshes of one table on the same part: add them
-                    dense = target[m.part].dense(int(max(d.indices.max(), target[m.part].indices.max())) + 1)
-                    dense[d.indices] += d.vectors
-                    d = SparseDisplacement.from_dense(dense)
-                target[m.part] = d
+                # Two meshes of one table on the same part add up.
+                target[m.part] = target[m.part] + d if m.part in target else d
             specs[name] = spec
     return targets, list(specs.values())
 

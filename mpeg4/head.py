@@ -155,6 +155,15 @@ class SparseDisplacement:
         out[self.indices] = self.vectors
         return out
 
+    def __add__(self, other: SparseDisplacement) -> SparseDisplacement:
+        """The sum of two displacements of one part (rows that cancel to zero are dropped)."""
+        idx = np.union1d(self.indices, other.indices)
+        vec = np.zeros((len(idx), 3))
+        vec[np.searchsorted(idx, self.indices)] += self.vectors
+        vec[np.searchsorted(idx, other.indices)] += other.vectors
+        keep = np.abs(vec).max(axis=1) > 0
+        return SparseDisplacement(idx[keep], vec[keep])
+
     def scaled(self, factor: float) -> SparseDisplacement:
         return SparseDisplacement(self.indices.copy(), self.vectors * factor)
 

@@ -67,3 +67,13 @@ def test_atomic_write_keeps_normal_permissions_and_the_old_file_on_error(tmp_pat
     except RuntimeError:
         pass
     assert p.read_text() == "one" and len(list(tmp_path.iterdir())) == 1
+
+
+def test_sparse_displacements_add():
+    from mpeg4 import SparseDisplacement
+
+    a = SparseDisplacement([0, 3], [[1.0, 0, 0], [0, 1.0, 0]])
+    b = SparseDisplacement([3, 5], [[0, -1.0, 0], [0, 0, 2.0]])
+    s = a + b
+    np.testing.assert_array_equal(s.indices, [0, 5])  # vertex 3 cancels out
+    np.testing.assert_array_equal(s.dense(6), a.dense(6) + b.dense(6))
