@@ -31,7 +31,8 @@ from mpeg4.errors import InputError
 from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
 from mpeg4.head import Head, SparseDisplacement
 
-__all__ = ["REGIONS", "ADJACENT", "region_of", "unrelated", "lip_side", "FapFit", "author_from_shapes",
+__all__ = ["REGIONS", "ADJACENT", "region_of", "unrelated", "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit",
+           "author_from_shapes",
            "HIGH_LEVEL_SHAPES", "author_high_level"]
 
 #: FP group → face region. Regions follow the muscles that move them together: the soft
@@ -66,22 +67,36 @@ _UPPER_LIP = {"2.2", "2.6", "2.7", "8.1", "8.5", "8.6", "8.9", "8.10"}
 _LOWER_LIP = {"2.3", "2.8", "2.9", "8.2", "8.7", "8.8"}
 
 
-def lip_side(head: Head, part: str) -> np.ndarray | None:
-    """(N,) +1 for vertices of ``part`` above the mouth line, −1 below, 0 beyond the corners.
+#: Inner-lip feature points that define the mouth line (see :func:`mouth_line`).
+MOUTH_LINE_FPS = ("2.5", "2.7", "2.9", "2.2", "2.3", "2.6", "2.8", "2.4")
 
-    The mouth line runs through the lip corners 2.5, 2.4 and midway between the inner
-    contours of the two lips (2.7/2.9, 2.2/2.3, 2.6/2.8), piecewise linear in x, so the
-    inner-lip points of each lip fall clearly on their own side.
+
+def mouth_line(points) -> np.ndarray:
+    """(5, 2) polyline of the mouth, sorted along its first coordinate.
+
+    It runs through the lip corners 2.5 and 2.4 and midway between the inner contours of
+    the two lips (2.7/2.9, 2.2/2.3, 2.6/2.8), so the inner-lip points of each lip fall
+    clearly on their own side.
+
+    Parameters
+    ----------
+    points : mapping of str to (2,) array
+        The :data:`MOUTH_LINE_FPS` in any 2D space (front-view x, y; the cloning space).
     """
-    need = ("2.5", "2.7", "2.9", "2.2", "2.3", "2.6", "2.8", "2.4")
-    if part != "skin" or not all(i in head.feature_points for i in need):
+    p = {i: np.asarray(points[i], dtype=np.float64) for i in MOUTH_LINE_FPS}
+    line = np.array([p["2.5"], 0.5 * (p["2.7"] + p["2.9"]), 0.5 * (p["2.2"] + p["2.3"]), 0.5 * (p["2.6"] + p["2.8"]),
+                     p["2.4"]])
+    return line[np.argsort(line[:, 0])]
+
+
+def lip_side(head: Head, part: str) -> np.ndarray | None:
+    """(N,) +1 for vertices of ``part`` above the mouth line, −1 below, 0 beyond the corners."""
+    if part != "skin" or not all(i in head.feature_points for i in MOUTH_LINE_FPS):
         return None
-    p = {i: head.fp_position(i) for i in need}
-    pts = np.array([p["2.5"], 0.5 * (p["2.7"] + p["2.9"]), 0.5 * (p["2.2"] + p["2.3"]), 0.5 * (p["2.6"] + p["2.8"]),
-                    p["2.4"]])
+    line = mouth_line({i: head.fp_position(i)[:2] for i in MOUTH_LINE_FPS})
     v = head.parts[part].vertices
-    line_y = np.interp(v[:, 0], pts[:, 0], pts[:, 1])
-    inside = (v[:, 0] > pts[0, 0]) & (v[:, 0] < pts[-1, 0])
+    line_y = np.interp(v[:, 0], line[:, 0], line[:, 1])
+    inside = (v[:, 0] > line[0, 0]) & (v[:, 0] < line[-1, 0])
     return np.where(inside, np.sign(v[:, 1] - line_y), 0.0)
 
 

@@ -34,6 +34,8 @@ import numpy as np
 from scipy.spatial import Delaunay, cKDTree
 
 from mpeg4.catalogue import FEATURE_POINTS
+
+from .author import MOUTH_LINE_FPS, mouth_line
 from mpeg4.errors import InputError
 from mpeg4.head import Head, SparseDisplacement
 
@@ -126,15 +128,12 @@ def align_to_source(target_2d: np.ndarray, target_fps_2d: np.ndarray, source_fps
 
 def _lip_class(head: Head, space: np.ndarray) -> np.ndarray:
     """+1 upper lip, −1 lower lip, 0 elsewhere, for points given in ``head``'s space."""
-    need = ("2.5", "2.7", "2.9", "2.2", "2.3", "2.6", "2.8", "2.4", "8.4", "8.3", "8.1", "8.2")
+    need = MOUTH_LINE_FPS + ("8.4", "8.3", "8.1", "8.2")
     if not all(i in head.feature_points for i in need):
         return np.zeros(len(space))
-    fp = {i: alignment_space(head, head.fp_position(i)[None])[0, :2] for i in need}
-    # The mouth line runs midway between the two lips' inner contours.
-    line = np.array([fp["2.5"], 0.5 * (fp["2.7"] + fp["2.9"]), 0.5 * (fp["2.2"] + fp["2.3"]),
-                     0.5 * (fp["2.6"] + fp["2.8"]), fp["2.4"]])
-    order = np.argsort(line[:, 0])
-    line_y = np.interp(space[:, 0], line[order, 0], line[order, 1])
+    fp = dict(zip(need, alignment_space(head, np.array([head.fp_position(i) for i in need]))[:, :2]))
+    line = mouth_line(fp)
+    line_y = np.interp(space[:, 0], line[:, 0], line[:, 1])
     inside = (space[:, 0] > fp["8.4"][0]) & (space[:, 0] < fp["8.3"][0])
     top, bottom = fp["8.1"][1], fp["8.2"][1]
     margin = 0.5 * (top - bottom)
