@@ -323,29 +323,25 @@ def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, 
                  if FEATURE_POINTS[i].side == "L" and FEATURE_POINTS[i].mirror in X]
         x0 = float(np.mean(mids))
         X = {i: v - x0 for i, v in X.items()}
-        for i in X:
-            x[i] = X[i]
+        x.update(X)
+
+        def x_seen(i):
+            """x of the side-photo point labelled ``i`` (a mirror label stands for its partner)."""
+            xi = x.get(i, 0.0)
+            return xi if FEATURE_POINTS[i].side in ("C", visible) else -xi
+
         # Side heights: Yf = y0 - v (D - sigma x) with unknown y0 and D (linear least squares).
         v = np.array([rs[i][1] for i in shared])
-        xv = np.array([sigma * x.get(i, 0.0) * (1 if i in side_any and FEATURE_POINTS[i].side in ("C", visible)
-                                                else -1) for i in shared])
+        xv = np.array([sigma * x_seen(i) for i in shared])
         y = np.array([Yf[i] for i in shared])
         A = np.c_[np.ones_like(v), -v]
         (y0, dist_s), *_ = np.linalg.lstsq(A, y - v * xv, rcond=None)
         if not dist_s > 0:
             raise InputError("the side photo's heights run the wrong way against the front photo's", where="side view",
                              fix="check that the side photo is upright")
-
-        def depth_to_side(i):
-            xi = x.get(i, 0.0)
-            if FEATURE_POINTS[i].side not in ("C", visible):
-                xi = -xi  # the label came from the mirror partner on the visible side
-            return dist_s - sigma * xi
-
-        Z = {i: facing * r[0] * depth_to_side(i) for i, r in rs.items()}
-        Ys = {i: y0 - r[1] * depth_to_side(i) for i, r in rs.items()}
-        for i in Z:
-            z[i] = Z[i]
+        Z = {i: facing * r[0] * (dist_s - sigma * x_seen(i)) for i, r in rs.items()}
+        Ys = {i: y0 - r[1] * (dist_s - sigma * x_seen(i)) for i, r in rs.items()}
+        z.update(Z)
     resid = {i: float(Ys[i] - Yf[i]) for i in shared}
     scales = {"front": float(ipd / (spread * f)), "side": float((dist_s - sigma * x["3.5"]) / f)}
     return X, Yf, Z, Ys, resid, scales
