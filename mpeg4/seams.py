@@ -52,7 +52,8 @@ def split_vertices(head: Head, part: str, source: np.ndarray, triangles: np.ndar
     -------
     Head
         Morph targets and FATs of the part list every duplicate of a vertex they move, with
-        the same displacement.
+        the same displacement. ``metadata["duplicated_vertices"][part]`` lists the original
+        of each duplicate (vertex ``N + k`` copies entry ``k``).
     """
     if part not in head.parts:
         raise InputError(f"the head has no part '{part}'", where="split_vertices", fix=f"use one of {sorted(head.parts)}")
@@ -79,11 +80,13 @@ def split_vertices(head: Head, part: str, source: np.ndarray, triangles: np.ndar
         if d is not None:
             idx, vec = _extend(d.indices, d.vectors, source, n)
             target[part] = SparseDisplacement(idx, vec)
-    ids = out.metadata.get("ict_vertex_ids", {}).get(part)
-    if ids is not None:  # the generic head's link back to ICT vertex ids (ranges or lists)
-        full = np.arange(ids[0], ids[1]) if len(ids) == 2 and ids[1] - ids[0] == n else np.asarray(ids)
-        out.metadata = dict(out.metadata, ict_vertex_ids=dict(out.metadata["ict_vertex_ids"],
-                                                              **{part: full[source].tolist()}))
+    # Per-vertex links kept in metadata (such as the generic head's ICT vertex ids) refer
+    # to the originals; the duplicates' originals are recorded beside them.
+    dups = dict(out.metadata.get("duplicated_vertices", {}))
+    old = np.asarray(dups.get(part, []), dtype=np.int64)
+    base_of = np.r_[np.arange(n - len(old)), old]  # current vertex → the vertex it first copied
+    dups[part] = np.r_[old, base_of[source[n:]]].tolist()
+    out.metadata = dict(out.metadata, duplicated_vertices=dups)
     if out.fat is not None:
         for table in out.fat.values():
             for mesh in table.meshes:

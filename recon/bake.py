@@ -16,7 +16,7 @@ import numpy as np
 
 from mpeg4.errors import InputError
 
-__all__ = ["uv_to_pixels", "rasterize", "rasterize_uv", "interpolate", "bake", "fill_empty"]
+__all__ = ["uv_to_pixels", "rasterize", "rasterize_uv", "interpolate", "bake", "fill_empty", "dilate_charts"]
 
 _SHIFT = 8  # sub-pixel bits for OpenCV's polygon filling
 
@@ -173,6 +173,37 @@ def fill_empty(image: np.ndarray, valid: np.ndarray, levels: int | None = None) 
     return out[..., 0] if squeeze else out
 
 
+def dilate_charts(image: np.ndarray, valid: np.ndarray, iterations: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Grow the valid texels of a texture outwards, one ring per iteration, each new texel
+    the mean of its valid neighbours: the gutter around every chart takes that chart's own
+    colours, so filtering near its edge never mixes in another chart.
+
+    Returns
+    -------
+    image : array of the input dtype
+    valid : (H, W) bool
+        The grown mask.
+    """
+    img = np.asarray(image).astype(np.float32)
+    img = img.reshape(img.shape[0], img.shape[1], -1)
+    ok = np.asarray(valid, dtype=bool).copy()
+    kernel = np.ones((3, 3), np.float32)
+    for _ in range(int(iterations)):
+        w = ok.astype(np.float32)
+        count = cv2.filter2D(w, -1, kernel, borderType=cv2.BORDER_CONSTANT)
+        grow = (count > 0) & ~ok
+        if not grow.any():
+            break
+        total = cv2.filter2D(img * w[..., None], -1, kernel, borderType=cv2.BORDER_CONSTANT)
+        total = total.reshape(img.shape)
+        img[grow] = total[grow] / count[grow][:, None]
+        ok |= grow
+    out = img.reshape(np.asarray(image).shape)
+    if np.issubdtype(np.asarray(image).dtype, np.integer):
+        out = np.clip(np.round(out), 0, 255)
+    return out.astype(np.asarray(image).dtype), ok
+
+
 def _down(a: np.ndarray) -> np.ndarray:
     """Sum-preserving 2x downsampling (a box of four), odd sizes padded with zeros."""
     h, w = a.shape[:2]
@@ -220,5 +251,6 @@ def bake(source: np.ndarray, source_uv: np.ndarray, target_uv: np.ndarray, trian
     out = cv2.remap(np.ascontiguousarray(source), map_xy[..., 0], map_xy[..., 1], cv2.INTER_LINEAR,
                     borderMode=cv2.BORDER_REPLICATE)
     if margin_fill:
-        out = fill_empty(out, covered)
+        out, grown = dilate_charts(out, covered, iterations=max(2, min(size) // 128))
+        out = fill_empty(out, grown)
     return out

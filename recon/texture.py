@@ -52,13 +52,15 @@ from mpeg4.render import Camera, render
 from .bake import fill_empty, rasterize
 from .cameras import FittedCamera
 
-__all__ = ["FEATURE_LINE", "REGIONS", "FeatureLineWarp", "SkinTexture", "feature_polygon", "line_depth", "vertex_regions",
+__all__ = ["FEATURE_LINE", "REGIONS", "FeatureLineWarp", "SkinTexture", "feature_line", "feature_polygon", "line_depth", "vertex_regions",
            "triangle_regions", "split_by_region", "blend_multiband", "blend_hard", "blend_feather",
-           "seam_band", "seam_gradient", "texture_skin"]
+           "seam_band", "seam_gradient", "photo_background", "texture_skin", "textured_head"]
 
-#: The feature line on the face's left, from the top of the skull to the chin (Lee et al.).
-#: The right one is its mirror image.
-FEATURE_LINE = ("11.4", "11.3", "4.5", "10.9", "10.7", "2.13", "2.11", "2.1")
+#: The feature points of the feature line on the face's left, from the top of the skull to
+#: the angle of the jaw (Lee et al.); below the jaw the line follows the neck's outline in
+#: the front view (:func:`feature_line`). The right line is the mirror image.
+FEATURE_LINE = ("11.4", "11.3", "4.5", "10.9", "10.7", "2.13")
+_NECK_STEP = 0.01  # metres between the neck outline's points
 
 #: Texture regions of the skin: which layer a triangle samples.
 REGIONS = ("front", "seen side", "mirrored side", "hidden")
@@ -81,15 +83,47 @@ def line_ids(side: str) -> tuple[str, ...]:
     return tuple(FEATURE_POINTS[i].mirror or i for i in FEATURE_LINE)
 
 
-def feature_polygon(front: FittedCamera, points3d: Mapping[str, np.ndarray]) -> np.ndarray:
-    """(K, 2) front-photo pixels of the closed face outline: the left feature line from the
-    top of the skull to the chin, then the right one back up (the chin and 11.4 once)."""
-    ids = list(line_ids("L")) + list(reversed(line_ids("R")))[1:-1]
+def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, skin_triangles: np.ndarray,
+                 side: str) -> tuple[np.ndarray, np.ndarray]:
+    """The feature line of one side of the face, top to bottom.
+
+    Its feature points (:data:`FEATURE_LINE`, mirrored for ``"R"``) and, below the angle of
+    the jaw, the neck's outline seen from the front: at every :data:`_NECK_STEP` down to
+    the bottom of the skin, the widest point of the skin's cross-section on that side. The
+    front photo sees the neck squarely, so the line hands it the neck's front; the side
+    photos keep what lies behind.
+
+    Returns
+    -------
+    points : (K, 3) float64
+        Metres.
+    is_fp : (K,) bool
+        Which of them are feature points.
+    """
+    ids = line_ids(side)
     missing = [i for i in ids if i not in points3d]
     if missing:
         raise InputError(f"the head lacks the feature points {', '.join(missing)} of the texture's feature lines",
                          where="texture", fix="give the head all of " + ", ".join(ids))
-    return front.project(np.array([points3d[i] for i in ids]))
+    fps = np.array([np.asarray(points3d[i], float) for i in ids])
+    sign = 1.0 if side == "L" else -1.0
+    v = np.asarray(skin_vertices, float)
+    heights = np.arange(fps[-1, 1] - _NECK_STEP, v[:, 1].min() + 0.004, -_NECK_STEP)
+    neck = []
+    for y, xz in zip(heights, _sections(v, skin_triangles, heights)):
+        on_side = xz[xz[:, 0] * sign > 0]
+        if len(on_side) < 3:
+            break
+        k = int(np.argmax(on_side[:, 0] * sign))
+        neck.append([on_side[k, 0], y, on_side[k, 1]])
+    points = np.vstack([fps, np.array(neck).reshape(-1, 3)])
+    return points, np.r_[np.ones(len(fps), bool), np.zeros(len(neck), bool)]
+
+
+def feature_polygon(front: FittedCamera, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+    """(K, 2) front-photo pixels of the closed outline of the front region: the left
+    feature line from the top of the skull down the neck, then the right one back up."""
+    return front.project(np.vstack([left, right[::-1][:-1]]))
 
 
 def _visible(points: np.ndarray, cam: Camera, depth: np.ndarray) -> np.ndarray:
@@ -167,13 +201,11 @@ def vertex_regions(vertices: np.ndarray, polygon_px: np.ndarray, front_px: np.nd
     return region
 
 
-def line_depth(points3d: Mapping[str, np.ndarray], heights: np.ndarray) -> np.ndarray:
+def line_depth(left: np.ndarray, right: np.ndarray, heights: np.ndarray) -> np.ndarray:
     """(N,) z (metres) of the feature lines at the given heights (y, metres): linear along
-    the line between its points, the mean of the left and right lines, held beyond the
-    ends."""
+    each line by height, the mean of the left and right lines, held beyond the ends."""
     out = []
-    for side in ("L", "R"):
-        p = np.array([points3d[i] for i in line_ids(side)])
+    for p in (np.asarray(left), np.asarray(right)):
         order = np.argsort(p[:, 1])
         out.append(np.interp(heights, p[order, 1], p[order, 2]))
     return 0.5 * (out[0] + out[1])
@@ -189,7 +221,8 @@ def triangle_regions(vertex_region: np.ndarray, triangles: np.ndarray) -> np.nda
 
 def split_by_region(triangles: np.ndarray, tri_region: np.ndarray, vertex_region: np.ndarray,
                     n_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Duplicate the vertices shared by triangles of different regions.
+    """Duplicate the vertices shared by triangles of different regions (except along the
+    front region's border, where the side triangles share the front's vertex).
 
     Returns
     -------
@@ -208,6 +241,13 @@ def split_by_region(triangles: np.ndarray, tri_region: np.ndarray, vertex_region
     corner_vertex = tri.reshape(-1)
     nr = len(REGIONS)
     used = np.zeros((n_vertices, nr), dtype=bool)
+    used[corner_vertex, corner_region] = True
+    # Along the feature lines the side triangles take the front copy of a shared vertex:
+    # both sides of the seam then sample the same place of the blended texture, and the
+    # side triangles bend into their own layer within one ring.
+    side_corner = (corner_region == SEEN) | (corner_region == MIRRORED)
+    corner_region = np.where(side_corner & used[corner_vertex, FRONT], FRONT, corner_region)
+    used[:] = False
     used[corner_vertex, corner_region] = True
     own = np.asarray(vertex_region, dtype=np.int64)
     keep = np.where(used[np.arange(n_vertices), own], own, np.argmax(used, axis=1))
@@ -249,10 +289,10 @@ class FeatureLineWarp:
     ----------
     side, front : FittedCamera
         The cameras of the side photo (or of the flipped side photo) and of the front one.
-    points3d : mapping of str to (3,) float
-        The head's feature points, metres.
-    ids : sequence of str
-        The feature line, top to bottom (:func:`line_ids`).
+    line : (K, 3) float
+        The feature line, top to bottom, metres (:func:`feature_line`).
+    line_fp : (K,) bool
+        Which of its points are feature points (they are never left out).
     outward : {+1, -1}
         +1 when the line is on the face's left (behind it lies +x), -1 on its right.
     skin : (vertices, triangles), optional
@@ -261,18 +301,19 @@ class FeatureLineWarp:
         Largest height step between rows along the line, metres.
     """
 
-    def __init__(self, side: FittedCamera, front: FittedCamera, points3d: Mapping[str, np.ndarray],
-                 ids, outward: float, skin: tuple[np.ndarray, np.ndarray] | None = None, row_step: float = 0.01):
-        ids = tuple(ids)
-        self.ids = ids
-        where = "texture, feature line " + " ".join(ids)
+    def __init__(self, side: FittedCamera, front: FittedCamera, line: np.ndarray, line_fp: np.ndarray,
+                 outward: float, skin: tuple[np.ndarray, np.ndarray] | None = None, row_step: float = 0.01):
+        where = "texture, feature line"
         self._side, self._front, self._sigma = side, front, float(outward)
-        X = np.array([points3d[i] for i in ids], dtype=np.float64)
-        # Anchors: the line's points and points between them, then the neck below the chin.
-        anchors = [X[0]]
-        for a, b in zip(X[:-1], X[1:]):
+        X = np.asarray(line, dtype=np.float64)
+        line_fp = np.asarray(line_fp, dtype=bool)
+        # Anchors: the line's points and points between them, then rows below its end.
+        anchors, is_fp = [X[0]], [bool(line_fp[0])]
+        for a, b, fb in zip(X[:-1], X[1:], line_fp[1:]):
             k = max(1, int(np.ceil(np.linalg.norm(a - b) / row_step)))
             anchors += [a + (b - a) * (j / k) for j in range(1, k + 1)]
+            is_fp += [False] * (k - 1) + [bool(fb)]
+        anchors = _descending(np.array(anchors), np.array(is_fp), side, front)
         last = anchors[-1]
         below = [last - np.array([0.0, h, 0.0]) for h in _BELOW]
         mesh = None
@@ -293,8 +334,9 @@ class FeatureLineWarp:
             v = pts[:, 0, 1]
             if (np.diff(v) <= 0).any():
                 raise InputError(f"the feature line does not run downwards in the {name} photo", where=where,
-                                 fix=f"check the heights of {', '.join(ids)} in the {name} photo")
+                                 fix=f"check the heights of {', '.join(FEATURE_LINE)} in the {name} photo")
         n_rows, n_cols = src.shape[:2]
+        self._shape = (n_rows, n_cols)
         self.source = src.reshape(-1, 2)
         self.target = dst.reshape(-1, 2)
         k = np.arange(n_rows * n_cols).reshape(n_rows, n_cols)
@@ -306,7 +348,7 @@ class FeatureLineWarp:
         if self.folded:
             raise InputError(f"the side photo's feature line folds over itself when laid on the front photo's "
                              f"({self.folded} triangles flip)", where=where,
-                             fix="check the positions of " + ", ".join(ids) + " in both photos")
+                             fix="check the positions of " + ", ".join(FEATURE_LINE) + " in both photos")
 
     # Rows: (C, 2) side pixels and (C, 2) composite pixels, at _ARC offsets then the far ones.
     def _directions(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -326,7 +368,9 @@ class FeatureLineWarp:
         f0 = f0 + (self._front.project((x + up)[None])[0] - f0) * (lift / d)
         ds, df = self._directions(x)
         t = np.r_[-_FAR, _ARC, _FAR]
-        return s0 + ds * t[:, None], f0 + df * t[:, None]
+        # Rows are horizontal in both photos (so that they cannot cross).
+        return (np.c_[s0[0] + ds[0] * t, np.full(len(t), s0[1])],
+                np.c_[f0[0] + df[0] * t, np.full(len(t), f0[1])])
 
     def _outline_row(self, sections, x: np.ndarray, midline: bool = False):
         """The row along the head's outline at the height of ``x`` (None when the section
@@ -431,25 +475,30 @@ class FeatureLineWarp:
     def forward(self, side_px: np.ndarray) -> np.ndarray:
         """(K, 2) composite-frame pixels of (K, 2) side-photo pixels."""
         p = np.asarray(side_px, dtype=np.float64).reshape(-1, 2)
-        tri = self.source[self.simplices]  # (T, 3, 2)
-        found = np.full(len(p), -1)
-        bary = np.zeros((len(p), 3))
-        v0, v1 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-        den = v0[:, 0] * v1[:, 1] - v0[:, 1] * v1[:, 0]
-        for start in range(0, len(p), 4096):
-            q = p[start:start + 4096, None, :] - tri[None, :, 0]  # (k, T, 2)
-            b1 = (q[..., 0] * v1[:, 1] - q[..., 1] * v1[:, 0]) / den
-            b2 = (v0[:, 0] * q[..., 1] - v0[:, 1] * q[..., 0]) / den
-            b0 = 1 - b1 - b2
-            worst = np.minimum(np.minimum(b0, b1), b2)  # >= 0 inside
-            t = np.argmax(worst, axis=1)
-            rows = np.arange(len(t))
-            found[start:start + 4096] = np.where(worst[rows, t] >= -1e-9, t, -1)
-            bary[start:start + 4096] = np.c_[b0[rows, t], b1[rows, t], b2[rows, t]]
-        if (found < 0).any():
-            raise InputError(f"{int((found < 0).sum())} points lie outside the side photo's warp", where="texture",
-                             fix="the photo is larger than the warp covers; crop it closer to the head")
-        return np.einsum("kc,kcd->kd", bary, self.target[self.simplices[found]])
+        grid = self.source.reshape(self._shape + (2,))
+        v_rows = grid[:, 0, 1]  # every row is horizontal in the side photo
+        r = np.clip(np.searchsorted(v_rows, p[:, 1]) - 1, 0, len(v_rows) - 2)
+        a = (p[:, 1] - v_rows[r]) / (v_rows[r + 1] - v_rows[r])
+        # Where the quads' sides cross the point's height, left to right.
+        sides = grid[r, :, 0] * (1 - a[:, None]) + grid[r + 1, :, 0] * a[:, None]  # (K, C)
+        increasing = sides[:, -1] >= sides[:, 0]
+        key = np.where(increasing[:, None], sides, -sides)
+        c = np.clip((key < np.where(increasing, p[:, 0], -p[:, 0])[:, None]).sum(axis=1) - 1, 0, self._shape[1] - 2)
+        n_quads = (self._shape[0] - 1) * (self._shape[1] - 1)
+        quad = r * (self._shape[1] - 1) + c
+        out = np.empty_like(p)
+        for half in (0, 1):  # the quad's two triangles: try the first, else the second
+            tri = self.simplices[quad + half * n_quads]
+            corners = self.source[tri]
+            bary = _bary(p, corners)
+            ok = bary.min(axis=1) >= -1e-9
+            if half == 0:
+                first_ok = ok
+                out[ok] = np.einsum("kc,kcd->kd", bary[ok], self.target[tri[ok]])
+            else:
+                rest = ~first_ok
+                out[rest] = np.einsum("kc,kcd->kd", bary[rest], self.target[tri[rest]])
+        return out
 
     def inverse_map(self, grid_to_composite: np.ndarray, size: tuple[int, int]) -> np.ndarray:
         """(H, W, 2) float32 side-photo pixels for a grid of composite-frame points.
@@ -469,6 +518,31 @@ class FeatureLineWarp:
         ys, xs = np.nonzero(ids >= 0)
         out[ys, xs] = np.einsum("kc,kcd->kd", bary[ys, xs], src[ids[ys, xs]])
         return out
+
+
+def _descending(anchors: np.ndarray, is_fp: np.ndarray, side: FittedCamera, front: FittedCamera,
+                min_gap_px: float = 2.0) -> list[np.ndarray]:
+    """The anchors whose rows run strictly downwards in both photos, top to bottom.
+
+    A person's feature line need not descend everywhere (the outer brow may sit lower than
+    where the ear joins the head); rows must, so anchors are taken by height and one that
+    would not sit at least ``min_gap_px`` below the previous row in both photos is left
+    out — a point between feature points first, a feature point only when two of them
+    share a height.
+    """
+    order = np.argsort(-anchors[:, 1], kind="stable")
+    a, fp = anchors[order], is_fp[order]
+    vs, vf = side.project(a)[:, 1], front.project(a)[:, 1]
+    keep = []
+    for k in range(len(a)):
+        if keep:
+            j = keep[-1]
+            if vs[k] - vs[j] < min_gap_px or vf[k] - vf[j] < min_gap_px:
+                if fp[k] and not fp[j]:
+                    keep[-1] = k  # a feature point displaces the point between them
+                continue
+        keep.append(k)
+    return [a[k] for k in keep]
 
 
 def _sections(vertices: np.ndarray, triangles: np.ndarray, heights: np.ndarray) -> list[np.ndarray]:
@@ -500,6 +574,16 @@ def _monotone(values: np.ndarray, sign: float) -> np.ndarray:
     v = np.maximum.accumulate(np.asarray(values, float) * sign)
     v = v + np.arange(len(v)) * 1e-6
     return v * sign
+
+
+def _bary(p: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """(K, 3) barycentric coordinates of points (K, 2) in triangles (K, 3, 2) (unclamped)."""
+    v0, v1 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
+    d = p - c[:, 0]
+    den = v0[:, 0] * v1[:, 1] - v0[:, 1] * v1[:, 0]
+    b1 = (d[:, 0] * v1[:, 1] - d[:, 1] * v1[:, 0]) / den
+    b2 = (v0[:, 0] * d[:, 1] - v0[:, 1] * d[:, 0]) / den
+    return np.c_[1.0 - b1 - b2, b1, b2]
 
 
 def _signed_areas(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
@@ -660,6 +744,28 @@ class SkinTexture:
     seen_sign: float = 1.0
 
 
+def photo_background(photo: np.ndarray, tol: float = 14.0, border: int = 6) -> np.ndarray:
+    """(H, W) bool: the plain backdrop of a photo, connected to its left and right borders.
+
+    Each row's backdrop colour is the median of its ``border`` outermost pixels on both
+    sides (a wall that darkens towards the floor still counts); a pixel within ``tol``
+    (RGB distance) of its row's colour belongs to the backdrop when it is connected to
+    the border through such pixels, so a face of a similar tone is never taken for it.
+    Busy backgrounds yield little backdrop; then the head's rendered silhouette alone
+    bounds what the texture takes from the photo.
+    """
+    img = np.asarray(photo, dtype=np.float32)
+    h, w = img.shape[:2]
+    b = max(1, min(border, w // 4))
+    edge = np.concatenate([img[:, :b], img[:, -b:]], axis=1)
+    ref = np.median(edge, axis=1)  # (H, 3)
+    close = np.linalg.norm(img - ref[:, None, :], axis=2) < tol
+    n, labels = cv2.connectedComponents(close.astype(np.uint8), connectivity=4)
+    touching = np.unique(np.r_[labels[:, 0], labels[:, -1]])
+    touching = touching[touching > 0]
+    return np.isin(labels, touching) & close
+
+
 def _head_meshes(head: Head):
     from mpeg4.preview import head_meshes
 
@@ -726,16 +832,18 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
     times["visibility"] = time.perf_counter() - t0
 
     t1 = time.perf_counter()
-    polygon = feature_polygon(front, pts)
+    lines = {k: feature_line(pts, V, skin.triangles, k) for k in ("L", "R")}
+    polygon = feature_polygon(front, lines["L"][0], lines["R"][0])
     front_px = front.project(V)
-    vregion = vertex_regions(V, polygon, front_px, line_depth(pts, V[:, 1]), anywhere, seen_sign)
+    depth_of_line = line_depth(lines["L"][0], lines["R"][0], V[:, 1])
+    vregion = vertex_regions(V, polygon, front_px, depth_of_line, anywhere, seen_sign)
     tregion = triangle_regions(vregion, skin.triangles)
     source, tris, region = split_by_region(skin.triangles, tregion, vregion, len(V))
-    seen_side_ids = line_ids("L" if seen_sign > 0 else "R")
-    other_ids = line_ids("R" if seen_sign > 0 else "L")
+    seen_line = lines["L" if seen_sign > 0 else "R"]
+    other_line = lines["R" if seen_sign > 0 else "L"]
     outline = (V, skin.triangles)
-    warps = {SEEN: FeatureLineWarp(side, front, pts, seen_side_ids, seen_sign, outline),
-             MIRRORED: FeatureLineWarp(mirrored, front, pts, other_ids, -seen_sign, outline)}
+    warps = {SEEN: FeatureLineWarp(side, front, *seen_line, seen_sign, outline),
+             MIRRORED: FeatureLineWarp(mirrored, front, *other_line, -seen_sign, outline)}
     comp = np.zeros((len(source), 2))
     sv = V[source]
     m = region == FRONT
@@ -765,7 +873,8 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
         if d.shape != photo.shape[:2]:
             raise InputError(f"the {key} photo is {photo.shape[1]}x{photo.shape[0]} but its camera is "
                              f"{d.shape[1]}x{d.shape[0]}", where="texture", fix="fit the camera to this photo")
-        head_mask = cv2.erode(np.isfinite(d).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+        head_mask = np.isfinite(d) & ~photo_background(photo)
+        head_mask = cv2.erode(head_mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
         if not head_mask.any():
             raise InputError(f"the head does not show in the {key} photo", where="texture",
                              fix="check the feature points of that photo")
@@ -806,10 +915,10 @@ def _layer_masks(A: np.ndarray, polygon: np.ndarray, pts, front: FittedCamera, s
     cv2.fillPoly(front_mask, [np.round(poly * 256).astype(np.int32)], 1, lineType=cv2.LINE_8, shift=8)
     front_mask = front_mask > 0
     top, chin = (np.r_[front.project(np.asarray(pts[i])[None])[0], 1.0] @ A.T for i in ("11.4", "2.1"))
-    ys, xs = np.mgrid[0:size, 0:size]
     slope = (top[0] - chin[0]) / (top[1] - chin[1]) if abs(top[1] - chin[1]) > 1e-9 else 0.0
     # Front photos show the face's left on the image's right.
-    right_half = xs > chin[0] + (ys - chin[1]) * slope
+    rows = np.arange(size, dtype=np.float64)
+    right_half = np.arange(size)[None, :] > (chin[0] + (rows - chin[1]) * slope)[:, None]
     seen_mask = ~front_mask & (right_half if seen_sign > 0 else ~right_half)
     mirrored_mask = ~front_mask & ~seen_mask
     return [front_mask, seen_mask, mirrored_mask]
