@@ -303,13 +303,7 @@ def split_lips(head: Head, corner: float = 0.1) -> np.ndarray:
         if head.feature_points[i].part != "skin":
             raise InputError(f"feature point {i} is bound to part '{head.feature_points[i].part}', not the skin")
 
-    def seeds(ids):
-        return sorted({v for i in ids if i in head.feature_points and head.feature_points[i].part == "skin"
-                       for v in head.feature_points[i].vertices})
-
-    g = _edge_graph(head.skin)
-    up = dijkstra(g, indices=seeds(_UPPER_SEEDS), min_only=True)
-    lo = dijkstra(g, indices=seeds(_LOWER_SEEDS), min_only=True)
+    up, lo = _fronts(head)
     label = np.where(lo <= up, -1, 1).astype(np.int8)
     corners = [head.fp_position(i) for i in ("2.4", "2.5", "8.3", "8.4") if i in head.feature_points]
     if corners:
@@ -317,6 +311,17 @@ def split_lips(head: Head, corner: float = 0.1) -> np.ndarray:
         near = np.min([np.linalg.norm(v - c, axis=1) for c in corners], axis=0) < corner * head.fapu.MW0
         label[near] = 0
     return label
+
+
+def _fronts(head: Head) -> tuple[np.ndarray, np.ndarray]:
+    """(N,) geodesic distances (metres along the skin's edges) to the upper and the lower seeds."""
+    def seeds(ids):
+        return sorted({v for i in ids if i in head.feature_points and head.feature_points[i].part == "skin"
+                       for v in head.feature_points[i].vertices})
+
+    g = _edge_graph(head.skin)
+    return (dijkstra(g, indices=seeds(_UPPER_SEEDS), min_only=True),
+            dijkstra(g, indices=seeds(_LOWER_SEEDS), min_only=True))
 
 
 def eyeball_centre(vertices: np.ndarray) -> tuple[np.ndarray, float]:
@@ -446,8 +451,13 @@ class MuscleRig:
         phi_neck = float(np.arctan2((neck - self.jaw_centre) @ e2, (neck - self.jaw_centre) @ e1))
         w = np.where(phi <= 0, 1.0, np.where(phi < phi_neck, np.cos(phi / phi_neck * np.pi / 2), 0.0))
         w[phi < -np.pi / 2] = 0.0  # behind and above the pivot: the skull
-        # The lip corners, shared by both lips, follow the jaw half-way.
-        self.jaw_weights = np.where(self.lips < 0, w, np.where(self.lips == 0, 0.5 * w, 0.0))
+        # Across the lips the split is sharp (they only touch); over the cheeks the jaw's
+        # share fades where the two fronts meet, over a band as wide as half the distance
+        # the fronts have come, so the skin over the jaw line stretches instead of tearing.
+        up, lo = _fronts(head)
+        band = np.maximum(0.5 * np.minimum(up, lo), 1e-6)
+        lower = np.clip(0.5 + (up - lo) / (2 * band), 0.0, 1.0)
+        self.jaw_weights = w * lower
         neck_spec = placement.get("neck", {})
         up = _point(head, neck_spec.get("upper"), es0, False, "the upper neck line, fmc/data/muscles.toml [neck]")[1]
         lo = _point(head, neck_spec.get("lower"), es0, False, "the lower neck line, fmc/data/muscles.toml [neck]")[1]
