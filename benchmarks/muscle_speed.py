@@ -3,6 +3,9 @@
 - time to author the full FAT set (66 low-level FAPs, 15 visemes, 7 expressions) from the
   sculpted shapes (``fmc.author``) and from the muscle model (``fmc.muscles``: placing the
   model, fitting each FAP, evaluating the visemes and expressions);
+- conformance of each route's tables through the decoder: for every translation FAP at
+  ±512, the feature point's error against ``value × FAPU`` along the axis (for the jaw,
+  the motion along the axis) and the largest motion of an unrelated point, relative;
 - the muscle model's per-frame deformation (FAP values → vertices through the parametric
   layer, the muscles and the combination rule) for a speech-like stream, beside FAT
   playback of the same frames through the muscle route's tables (``fmc.play.Player``).
@@ -34,6 +37,32 @@ def frames(n: int) -> list[dict]:
     return out
 
 
+def conformance(head, fat) -> tuple[np.ndarray, np.ndarray]:
+    """Per translation FAP and sign: relative FP error and relative leak (the tests' measure)."""
+    from fmc.author import unrelated
+    from mpeg4 import FAPS, FP_IDS, apply_fat
+    from mpeg4.fat import fap_unit
+
+    neutral = {n: p.vertices for n, p in head.parts.items()}
+    ids = [i for i in FP_IDS if i in head.feature_points]
+    base = np.array([head.fp_position(i) for i in ids])
+    errors, leaks = [], []
+    for n in range(3, 69):
+        fap = FAPS[n]
+        if fap.kind != "translation":
+            continue
+        k = ids.index(fap.feature_points[0])
+        bad = unrelated(fap.feature_points[0], ids)
+        for value in ((512.0,) if fap.direction == "U" else (512.0, -512.0)):
+            moved = apply_fat(fat, neutral, {n: value}, head.fapu)
+            motion = np.array([head.fp_position(i, moved) for i in ids]) - base
+            goal = value * fap_unit(n, head.fapu) * fap.axis_vector
+            g = np.linalg.norm(goal)
+            errors.append(abs(motion[k] @ goal / g - g) / g if n in (3, 14, 15) else np.linalg.norm(motion[k] - goal) / g)
+            leaks.append(np.linalg.norm(motion[bad], axis=1).max() / g)
+    return np.array(errors), np.array(leaks)
+
+
 def best_of(fn, repeat: int = 3) -> float:
     times = []
     for _ in range(repeat):
@@ -53,6 +82,7 @@ def main(argv=None) -> int:
     from fmc.play import Player
     from mpeg4.generic_head import load_generic_head
 
+    state = {}
     head = load_generic_head()
     bare = load_generic_head()
     bare.morph_targets = {}
@@ -60,9 +90,7 @@ def main(argv=None) -> int:
     def shapes():
         fat, _ = author_from_shapes(head)
         fat.update(author_high_level(head))
-        return fat
-
-    state = {}
+        state.update(shapes=fat)
 
     def muscles():
         rig = MuscleRig.from_head(bare)
@@ -74,6 +102,11 @@ def main(argv=None) -> int:
     t_muscles = best_of(muscles)
     print(f"author_shapes: {t_shapes:.2f} s")
     print(f"author_muscles: {t_muscles:.2f} s")
+    for label, h, fat in (("shapes", head, state["shapes"]), ("muscles", bare, state["fat"])):
+        err, leak = conformance(h, fat)
+        print(f"conformance_{label}_fp_error: median {np.median(err):.1%}, worst {err.max():.1%} "
+              f"over {len(err)} FAP directions")
+        print(f"conformance_{label}_unrelated_leak: median {np.median(leak):.1%}, worst {leak.max():.1%}")
     rig = state["rig"]
     t_place = best_of(lambda: MuscleRig.from_head(bare))
     print(f"muscle_model_placement: {t_place:.2f} s ({len(rig.muscles)} muscles over {len(rig.support)} skin vertices)")

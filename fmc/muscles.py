@@ -835,7 +835,7 @@ def author_from_muscles(head: Head, value: float = 512.0, tol: float = 0.10, lea
             else:
                 if a_matrix is None:
                     a_matrix = _muscle_matrix(rig, ids)
-                action, moved = _fit_muscles(rig, a_matrix, ids, k, bad, goal, value, tol, leak_tol)
+                action, moved = _fit_muscles(rig, a_matrix, ids, k, bad, goal, value)
             if moved is not None:
                 motion = _fp_motion(head, moved, neutral, ids)
                 along = motion[k] @ goal / g
@@ -895,7 +895,7 @@ def _muscle_matrix(rig: MuscleRig, ids: list[str]) -> np.ndarray:
     return a
 
 
-def _fit_muscles(rig, a, ids, k, bad, goal, value, tol, leak_tol):
+def _fit_muscles(rig, a, ids, k, bad, goal, value):
     """Non-negative contractions moving FP k to ``goal`` with unrelated FPs still; the
     combination rule then applied and the result scaled so the motion along the axis is exact."""
     weights = np.where(bad, 1.0, 0.1)
