@@ -71,8 +71,34 @@ def rasterize(corners: np.ndarray, triangles: np.ndarray, size: tuple[int, int])
         cv2.fillConvexPoly(ids, fixed[k], int(k), lineType=cv2.LINE_8, shift=_SHIFT)
     bary = np.zeros((h, w, 3))
     ys, xs = np.nonzero(ids >= 0)
-    if len(ys):
-        bary[ys, xs] = _barycentric(np.c_[xs, ys].astype(np.float64), px[ids[ys, xs]])
+    if not len(ys):
+        return ids, bary
+    p = np.c_[xs, ys].astype(np.float64)
+    b = _barycentric(p, px[ids[ys, xs]], clamp=False)
+    # Polygon filling also takes pixels its edges merely touch: give such a texel the
+    # neighbouring triangle (of the 3 x 3 around it) that really holds its centre.
+    for _ in range(3):  # a texel's rightful neighbour may itself be put right in the pass before
+        off = b.min(axis=1) < -1e-9
+        if not off.any():
+            break
+        oy, ox = ys[off], xs[off]
+        padded = np.pad(ids, 1, constant_values=-1)
+        cand = np.stack([padded[oy + 1 + dy, ox + 1 + dx] for dy in (-1, 0, 1) for dx in (-1, 0, 1)], axis=1)
+        best_t, best_b, best_m = ids[oy, ox].copy(), b[off], b[off].min(axis=1)
+        for j in range(cand.shape[1]):
+            t = cand[:, j]
+            ok = t >= 0
+            bj = np.zeros((len(t), 3))
+            bj[ok] = _barycentric(p[off][ok], px[t[ok]], clamp=False)
+            mj = np.where(ok, bj.min(axis=1), -np.inf)
+            better = mj > best_m
+            best_t[better], best_b[better], best_m[better] = t[better], bj[better], mj[better]
+        if (best_t == ids[oy, ox]).all():
+            break
+        ids[oy, ox] = best_t
+        b[off] = best_b
+    b = np.clip(b, 0.0, None)
+    bary[ys, xs] = b / b.sum(axis=1, keepdims=True)
     return ids, bary
 
 
@@ -82,16 +108,20 @@ def rasterize_uv(uv: np.ndarray, triangles: np.ndarray, size: tuple[int, int]) -
     return rasterize(uv_to_pixels(uv, size), triangles, size)
 
 
-def _barycentric(p: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """(K, 3) barycentric coordinates of points (K, 2) in triangles (K, 3, 2), clamped to
-    the triangle (texels on its rim fall a hair outside) and renormalised."""
+def _barycentric(p: np.ndarray, c: np.ndarray, clamp: bool = True) -> np.ndarray:
+    """(K, 3) barycentric coordinates of points (K, 2) in triangles (K, 3, 2); with
+    ``clamp`` clamped to the triangle (texels on its rim fall a hair outside) and
+    renormalised."""
     v0, v1 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
     d = p - c[:, 0]
     den = v0[:, 0] * v1[:, 1] - v0[:, 1] * v1[:, 0]
     den = np.where(np.abs(den) < 1e-12, 1e-12, den)
     b1 = (d[:, 0] * v1[:, 1] - d[:, 1] * v1[:, 0]) / den
     b2 = (v0[:, 0] * d[:, 1] - v0[:, 1] * d[:, 0]) / den
-    b = np.clip(np.c_[1.0 - b1 - b2, b1, b2], 0.0, None)
+    b = np.c_[1.0 - b1 - b2, b1, b2]
+    if not clamp:
+        return b
+    b = np.clip(b, 0.0, None)
     return b / b.sum(axis=1, keepdims=True)
 
 
@@ -160,6 +190,8 @@ def fill_empty(image: np.ndarray, valid: np.ndarray, levels: int | None = None) 
     # Pull: fill each level's gaps from the coarser level's estimate.
     cf, cw = stack[-1]
     est = cf / np.maximum(cw, 1e-12)[..., None]
+    # Cells of the coarsest level with no valid pixel under them take the overall mean.
+    est[cw <= 0] = (f[valid]).mean(axis=0)
     for cf, cw in reversed(stack[:-1]):
         up = cv2.resize(est, (cw.shape[1], cw.shape[0]), interpolation=cv2.INTER_LINEAR)
         up = up.reshape(cw.shape + (f.shape[2],))

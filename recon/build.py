@@ -322,7 +322,7 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
               out_dir: str | os.PathLike, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
               method: str = "dffd", texture_size: int = DEFAULT_TEXTURE_SIZE, atlas: bool = False,
               shape_from: str | os.PathLike | None = None, texture_from: str | os.PathLike | None = None,
-              progress: Callable[[str], None] | None = None) -> dict[str, Path]:
+              progress: Callable[[str], None] | None = None, result: list | None = None) -> dict[str, Path]:
     """``recon build``: write the textured head bundle.
 
     Parameters
@@ -341,6 +341,9 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
         Shape–texture separation: the shape from one annotated pair, the texture from
         another (each file names its photos, or ``front``/``side`` give the shape's).
     progress : callable, optional
+    result : list, optional
+        If given, the :class:`BuildResult` is appended to it (for callers that go on with
+        the head).
 
     Returns
     -------
@@ -361,15 +364,15 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
     say("reading the photos and annotations")
     shape = load_pair(shape_path, front, side)
     texture = load_pair(texture_from) if texture_from is not None else None
-    result = build_head(shape, texture, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
-                        texture_size=texture_size, atlas=atlas, progress=say)
+    res = build_head(shape, texture, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
+                     texture_size=texture_size, atlas=atlas, progress=say)
     options = {"ipd_mm": ipd_mm, "focal_px": focal_px, "method": method, "texture_size": texture_size,
                "atlas": atlas, "shape_texture_separation": texture is not None}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=".build-", dir=out))
     try:
-        written = _write_bundle(result, shape, texture, options, tmp, say)
+        written = _write_bundle(res, shape, texture, options, tmp, say)
         final = {}
         for key, p in written.items():
             if p.exists():
@@ -377,6 +380,8 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
                 final[key] = out / p.name
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    say(f"done in {time.perf_counter() - t0:.1f} s (shape {result.timings['shape']:.1f} s, texture "
-        f"{result.timings['texture']:.1f} s)")
+    if result is not None:
+        result.append(res)
+    say(f"done in {time.perf_counter() - t0:.1f} s (shape {res.timings['shape']:.1f} s, texture "
+        f"{res.timings['texture']:.1f} s)")
     return final

@@ -63,8 +63,8 @@ FEATURE_LINE = ("11.4", "11.3", "4.5", "10.9", "10.7", "2.13")
 _NECK_STEP = 0.01  # metres between the neck outline's points
 
 #: Texture regions of the skin: which layer a triangle samples.
-REGIONS = ("front", "seen side", "mirrored side", "hidden")
-FRONT, SEEN, MIRRORED, HIDDEN = range(4)
+REGIONS = ("front", "seen side", "mirrored side", "hidden", "fold")
+FRONT, SEEN, MIRRORED, HIDDEN, FOLD = range(5)
 
 # Arc lengths (metres) behind (+) and in front of (−) the feature line at which a row's
 # control points are placed; _FAR makes the warp cover the whole photo.
@@ -74,6 +74,7 @@ _FAR = 1.5
 _ABOVE, _BELOW = (0.05, 1.0), (0.02, 0.04, 0.06, 0.09, 0.12, 0.16, 1.0)
 _VISIBLE_TOL = 0.003  # metres: a vertex this close behind the nearest surface is seen
 _HIDDEN_RGB = (96, 40, 44)  # the inside of the mouth
+_FOLD = 0.004  # metres: hidden skin this close to seen skin is a fold and takes its colour
 
 
 def line_ids(side: str) -> tuple[str, ...]:
@@ -215,8 +216,29 @@ def triangle_regions(vertex_region: np.ndarray, triangles: np.ndarray) -> np.nda
     """(M,) int8: the region most of a triangle's corners belong to (ties: the first in
     :data:`REGIONS`, so the front photo wins)."""
     r = np.asarray(vertex_region)[np.asarray(triangles)]
-    counts = np.stack([(r == k).sum(axis=1) for k in range(len(REGIONS))], axis=1)
+    counts = np.stack([(r == k).sum(axis=1) for k in range(HIDDEN + 1)], axis=1)
     return np.argmax(counts, axis=1).astype(np.int8)
+
+
+def _folds(vertices: np.ndarray, triangles: np.ndarray, tri_region: np.ndarray, vertex_region: np.ndarray,
+           reach: float = None) -> np.ndarray:
+    """Hidden triangles that touch skin a camera sees within ``reach`` metres become folds
+    (:data:`FOLD`): creases and rims that open up when the face moves, to be coloured like
+    the skin beside them rather than like the inside of the mouth."""
+    from scipy.spatial import cKDTree
+
+    reach = _FOLD if reach is None else reach
+    out = np.asarray(tri_region).copy()
+    seen = np.asarray(vertex_region) != HIDDEN
+    hid = np.flatnonzero(out == HIDDEN)
+    if not len(hid) or not seen.any():
+        return out
+    corners = np.unique(np.asarray(triangles)[hid])
+    dist, _ = cKDTree(vertices[seen]).query(vertices[corners])
+    near = np.zeros(len(vertices), bool)
+    near[corners[dist < reach]] = True
+    out[hid[near[np.asarray(triangles)[hid]].any(axis=1)]] = FOLD
+    return out
 
 
 def split_by_region(triangles: np.ndarray, tri_region: np.ndarray, vertex_region: np.ndarray,
@@ -414,7 +436,7 @@ class FeatureLineWarp:
         step = 1e-3
         direction = 1.0 if theta(at(s_a + step))[0] > theta(at(s_a - step))[0] else -1.0
         # How far the outline runs back to the back midline and forward to the front midline.
-        fine = np.arange(0.0, perimeter, 5e-4)
+        fine = np.arange(0.0, perimeter, 1e-3)
         back_pts = at(s_a + direction * fine)
         fwd_pts = at(s_a - direction * fine)
         L_back = _first_crossing(fine, sig * back_pts[:, 0], back_pts[:, 1] < zc)
@@ -594,9 +616,12 @@ def _signed_areas(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
 # --- blending ---------------------------------------------------------------------------------
 
 def _levels(shape, levels):
+    # Five levels at 2048² (four at 1024²): the coarsest band spans about a tenth of the
+    # face, enough to even out the photos' lighting across the seams without recolouring
+    # the middle of the face (more levels reach further in; benchmarks/texture_fidelity.py).
     if levels is not None:
         return int(levels)
-    return max(1, int(np.log2(min(shape[:2]))) - 4)
+    return max(1, int(np.log2(min(shape[:2]))) - 6)
 
 
 def blend_multiband(images, masks, levels: int | None = None, method: str = "opencv") -> np.ndarray:
@@ -609,7 +634,7 @@ def blend_multiband(images, masks, levels: int | None = None, method: str = "ope
     masks : sequence of (H, W) bool
         Where each layer is wanted; together they should cover the frame once.
     levels : int, optional
-        Pyramid levels; ``log2(min(H, W)) - 4`` by default (6 at 1024², 7 at 2048²).
+        Pyramid levels; ``log2(min(H, W)) - 6`` by default (4 at 1024², 5 at 2048²).
     method : {"opencv", "skimage"}
         OpenCV's multi-band blender (``cv2.detail_MultiBandBlender``) or Laplacian and
         Gaussian pyramids built with scikit-image — the same spline; the benchmark compares
@@ -643,24 +668,34 @@ def blend_multiband(images, masks, levels: int | None = None, method: str = "ope
 
 
 def _blend_skimage(images, masks, levels: int) -> np.ndarray:
-    from skimage.transform import pyramid_expand, pyramid_gaussian, pyramid_laplacian
+    """The spline with scikit-image's pyramid steps: G_{k+1} = reduce(G_k),
+    L_k = G_k - expand(G_{k+1}), the coarsest G_n kept; blended per level with the mask's
+    Gaussian pyramid and collapsed by G_k = L_k + expand(G_{k+1})."""
+    from skimage.transform import pyramid_expand, pyramid_reduce
 
-    acc = None
-    weight = None
+    def expand(a, shape):
+        up = pyramid_expand(a, upscale=2, channel_axis=-1 if a.ndim == 3 else None)
+        pad = [(0, max(0, shape[0] - up.shape[0])), (0, max(0, shape[1] - up.shape[1]))] + [(0, 0)] * (a.ndim - 2)
+        return np.pad(up, pad, mode="edge")[:shape[0], :shape[1]]
+
+    acc = weight = None
     for im, m in zip(images, masks):
-        lap = list(pyramid_laplacian(im.astype(np.float64) / 255.0, max_layer=levels, channel_axis=-1))
-        gau = list(pyramid_gaussian(m.astype(np.float64), max_layer=levels))
+        g = [im.astype(np.float64) / 255.0]
+        gm = [m.astype(np.float64)]
+        for _ in range(levels):
+            g.append(pyramid_reduce(g[-1], downscale=2, channel_axis=-1))
+            gm.append(pyramid_reduce(gm[-1], downscale=2))
+        lap = [g[k] - expand(g[k + 1], g[k].shape) for k in range(levels)] + [g[-1]]
         if acc is None:
             acc = [np.zeros_like(x) for x in lap]
-            weight = [np.zeros_like(g) for g in gau]
+            weight = [np.zeros(x.shape[:2]) for x in lap]
         for k in range(len(lap)):
-            acc[k] += lap[k] * gau[k][..., None]
-            weight[k] += gau[k]
+            acc[k] += lap[k] * gm[k][..., None]
+            weight[k] += gm[k]
     acc = [a / np.maximum(wt, 1e-12)[..., None] for a, wt in zip(acc, weight)]
     out = acc[-1]
     for k in range(len(acc) - 2, -1, -1):
-        up = pyramid_expand(out, upscale=2, channel_axis=-1)
-        out = acc[k] + up[:acc[k].shape[0], :acc[k].shape[1]]
+        out = acc[k] + expand(out, acc[k].shape)
     return np.clip(np.round(out * 255.0), 0, 255).astype(np.uint8)
 
 
@@ -838,6 +873,7 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
     depth_of_line = line_depth(lines["L"][0], lines["R"][0], V[:, 1])
     vregion = vertex_regions(V, polygon, front_px, depth_of_line, anywhere, seen_sign)
     tregion = triangle_regions(vregion, skin.triangles)
+    tregion = _folds(V, skin.triangles, tregion, vregion)
     source, tris, region = split_by_region(skin.triangles, tregion, vregion, len(V))
     seen_line = lines["L" if seen_sign > 0 else "R"]
     other_line = lines["R" if seen_sign > 0 else "L"]
@@ -852,6 +888,16 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
         m = region == r
         if m.any():
             comp[m] = warps[r].forward(cam.project(sv[m]))
+    # Folds take the place of the nearest skin of the front region (the lids' creases, the
+    # lips' inner rims and the nostrils are all in the face).
+    fold = region == FOLD
+    if fold.any():
+        from scipy.spatial import cKDTree
+
+        donors = np.flatnonzero(region == FRONT)
+        donors = donors if len(donors) else np.flatnonzero(~fold & (region != HIDDEN))
+        _, near = cKDTree(sv[donors]).query(sv[fold])
+        comp[fold] = comp[donors[near]]
     hidden = region == HIDDEN
     # The texture frame: every coordinate in use, plus a margin, scaled into the square.
     used = comp[~hidden] if (~hidden).any() else comp
