@@ -2,10 +2,13 @@
 accuracy on ICT identities, animation files in and out, clear errors."""
 
 import importlib.util
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
 from fmc.example_based import (FEATURE_POINTS, VERBAL, CardinalBasis, KeyModels, Parameterisation,
                                Retargeter, combined_name, composite, composite_key_models, cubic_bspline,
@@ -280,3 +283,35 @@ def test_bad_input_gives_clear_errors(generic_keys):
         Parameterisation.fit(KeyModels(keys.neutral, keys.names[:3], keys.displacements[:3], bare))
     with pytest.raises(InputError, match="the head lacks the shapes"):
         key_models_from_shapes(_small_head())
+
+
+# --- command line -----------------------------------------------------------------------
+
+def test_fmc_retarget(tmp_path, validate_gltf):
+    from fmc.cli import app
+    from mpeg4.io import save_head
+
+    head = _small_head()
+    save_head(head, tmp_path / "source.glb")
+    save_head(_other_face(head), tmp_path / "target.glb")
+    rng = np.random.default_rng(2)
+    frames = np.array([np.concatenate(list(head.morphed(dict(zip(SMALL, w))).values()))
+                       for w in rng.uniform(0, 0.8, (8, len(SMALL)))])
+    np.savez(tmp_path / "anim.npz", vertices=frames, fps=25.0)
+    args = [str(tmp_path / f) for f in ("source.glb", "target.glb", "anim.npz")]
+    out = CliRunner().invoke(app, ["retarget", *args, "-o", str(tmp_path / "out"), "--key-models", "morph-targets",
+                                   "--drafts", str(tmp_path / "drafts.glb"), "--npz"])
+    assert out.exit_code == 0, out.output
+    assert "drafted 6 of 6" in out.output
+    for glb in (tmp_path / "out" / "animation.glb", tmp_path / "drafts.glb"):
+        assert validate_gltf(glb)["issues"]["numErrors"] == 0
+    # The drafts, edited or not, are the target next time: nothing is drafted.
+    again = CliRunner().invoke(app, ["retarget", args[0], str(tmp_path / "drafts.glb"), args[2], "-o",
+                                     str(tmp_path / "out2"), "--key-models", "morph-targets"])
+    assert again.exit_code == 0 and "drafted" not in again.output
+    with np.load(tmp_path / "out" / "frames.npz") as f:
+        assert f["vertices"].shape == frames.shape and f["weights"].shape == (len(frames), len(SMALL))
+    bad = subprocess.run([sys.executable, "-m", "fmc", "retarget", args[0], args[1], str(tmp_path / "none.npz")],
+                         capture_output=True, text=True, cwd=ROOT)
+    assert bad.returncode == 2 and "none.npz: animation file not found" in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1
