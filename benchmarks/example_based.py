@@ -22,6 +22,12 @@ norms ``Σ‖x − x_neutral‖`` (as in ``benchmarks/clone_accuracy.py``; much 
 source → source and source → target → source. FMC on the same data: its clones of the
 key-models (``keys``) or of the ARKit shapes (``mix``) with the same weights.
 
+With the sculpted target key-models the round trip equals source → source: ICT moves
+every identity by the same deltas, so the target key-models move the feature points as
+the source's do, and the cardinal basis reproduces affine functions of the parameters
+(Σ w_i(p) p_i = p), so the way back meets the same parameters again. The FMC-drafted
+target key-models are the test of the target side.
+
 Times (2 cores, the generic head's 24,670 vertices, all parts): preprocessing
 (compositing; parameterisation and weight functions) and per frame (the weights alone;
 weights and all target vertices for a whole animation; one frame at a time).
@@ -151,6 +157,8 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=500)
     ap.add_argument("--picture", type=Path, help="write the importance map and a few composites (PNG)")
     args = ap.parse_args(argv)
+    if args.targets < 1 or args.frames < 1:
+        ap.error("--targets and --frames must be at least 1")
     from shape_accuracy import NPZ
 
     if not NPZ.exists():

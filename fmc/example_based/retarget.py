@@ -69,8 +69,15 @@ class Retargeter:
 
     Examples
     --------
-    >>> r = Retargeter(source_keys, target_keys)  # doctest: +SKIP
-    >>> target_frames = r(source_frames)  # (F, V_target, 3)  # doctest: +SKIP
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> face = rng.normal(size=(6, 3))
+    >>> src = KeyModels.from_positions({"neutral": face, "a": face + rng.normal(size=(6, 3)),
+    ...                                 "b": face + rng.normal(size=(6, 3))})
+    >>> tgt = KeyModels.from_positions({n: 2 * src.positions(n) for n in ("neutral", "a", "b")})
+    >>> r = Retargeter(src, tgt, feature_points=[0, 1, 2])
+    >>> np.allclose(r(src.positions("b")), tgt.positions("b"))
+    True
 
     References
     ----------
