@@ -129,6 +129,26 @@ def clone_cmd(source: Path = typer.Option(..., "--source", help="Head with motio
     typer.echo(save_head(head, out))
 
 
+@app.command()
+def retarget(source: Path = typer.Argument(..., help="Source head (.glb): key-models as morph targets, or ARKit shapes."),
+             target: Path = typer.Argument(..., help="Target head (.glb, or .obj + fdp.json); key-models it lacks "
+                                                     "are drafted by FMC."),
+             animation: Path = typer.Argument(..., help="Source animation: .glb (morph weights), .npz (vertices) "
+                                                        "or .fap (through the source's tables)."),
+             out: Path = typer.Option(Path("retarget_out"), "-o", "--out", help="Output folder."),
+             key_models: str = typer.Option("visemes-expressions", help="Source key-models: visemes-expressions "
+                                            "(14 visemes x 6 expressions, composited) or morph-targets (as they are)."),
+             drafts: Path = typer.Option(None, help="Also write the target with all its key-models (.glb) to edit."),
+             npz: bool = typer.Option(False, help="Also write the target vertex frames (frames.npz).")) -> None:
+    """Clone an animation onto another head by example-based cloning (Pyun et al.): the target's own
+    key-models, blended per frame: animation.glb (key-models as morph targets, weights animated)."""
+    from fmc.example_based import retarget as run
+
+    for kind, path in run(source, target, animation, out, key_models=key_models, drafts=drafts, npz=npz,
+                          progress=lambda m: typer.echo(f"fmc: {m}", err=True)).items():
+        typer.echo(f"{kind}: {path}")
+
+
 @app.command("fap-info")
 def fap_info(stream: Path = typer.Argument(..., help="MPEG-4 .fap text stream."),
              lenient: bool = typer.Option(False, help="Accept a header frame count that disagrees with the body.")
