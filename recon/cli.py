@@ -46,6 +46,23 @@ def fit(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
 
 
 @app.command()
+def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
+             side: Path = typer.Argument(..., help="Side (profile) photo."),
+             fdp: Path = typer.Option(None, "--fdp", help="Annotation file (*.fdp.json): read if it exists, "
+                                                          "saved as you work [default: FRONT.fdp.json beside it]."),
+             browser: bool = typer.Option(True, "--browser/--no-browser", help="Open the page in the browser."),
+             port: int = typer.Option(0, "--port", help="Port on 127.0.0.1 (0: any free one).")) -> None:
+    """Place and correct the feature points on the two photos in a local web page."""
+    from .annotate import annotate as run_annotate
+
+    def ready(url: str) -> None:
+        typer.echo(f"annotate: {url}")
+        _say("serving on 127.0.0.1 only; press Ctrl-C to stop")
+
+    typer.echo(f"fdp: {run_annotate(front, side, fdp, open_browser=browser, port=port, ready=ready)}")
+
+
+@app.command()
 def preview(head: Path = typer.Argument(..., help="Head file (.glb, .gltf or .obj with its .fdp.json)."),
             out: Path = typer.Option(Path("preview.png"), "-o", "--out", help="PNG to write."),
             size: int = typer.Option(720, help="Height of each view in pixels."),
