@@ -236,16 +236,20 @@ def complete_views(views: Mapping[str, ViewAnnotation], sizes: Mapping[str, tupl
         New annotations: the known points unchanged, the placed ones added with confidence
         :data:`GUESS_CONFIDENCE`. Placed points falling outside the photo are left out.
     report : dict
-        Per view: ``placed`` (ids), ``known`` (how many points the fit used), ``rms_px``.
+        Per view: ``placed`` (ids), ``known`` (how many points the fit used), ``rms_px``,
+        ``how`` (a few words on what placed them).
     """
     known = {n: dict(views[n].points) if n in views else {} for n in VIEWS}
     side = visible_side(known["side"])
     layouts = {"front": {i: layout["front"][i] for i in shown_in("front") if i in layout["front"]},
                "side": {i: layout["side"][i] for i in shown_in("side", side) if i in layout["side"]}}
     fits = {n: fit_view(layouts[n], known[n], sizes[n], reflect=(n == "side")) for n in VIEWS}
+    how = {n: f"fitted to {f.known} points" if f.known >= 2 else
+           "one point and the image size" if f.known else "the image centre and size" for n, f in fits.items()}
     # A photo with too little of its own borrows the other's scale and height.
     for n, other in (("front", "side"), ("side", "front")):
         if fits[n].known < 2 <= fits[other].known:
+            how[n] = f"the {other} photo's scale and height" + (" and one point" if fits[n].known else "")
             w, h = sizes[n]
             ratio = h / sizes[other][1]
             o = fits[other]
@@ -277,7 +281,7 @@ def complete_views(views: Mapping[str, ViewAnnotation], sizes: Mapping[str, tupl
         out[n] = ViewAnnotation(image=base.image, width=w, height=h,
                                 points=dict(sorted(points.items(), key=lambda kv: order[kv[0]])),
                                 confidence=dict(sorted(confidence.items(), key=lambda kv: order[kv[0]])))
-        report[n] = {"placed": placed, "known": fits[n].known, "rms_px": fits[n].rms_px}
+        report[n] = {"placed": placed, "known": fits[n].known, "rms_px": fits[n].rms_px, "how": how[n]}
     return out, report
 
 
@@ -394,10 +398,7 @@ def initial_annotation(front: str | os.PathLike, side: str | os.PathLike, fdp_pa
         msg = "Points placed by automatic detection (recon.landmarks)"
         msg += f"; {extra} it did not give were placed from the generic head." if extra else "."
         return Initialisation(fdp, "landmarks", msg, report)
-    how = []
-    for n in VIEWS:
-        r = report[n]
-        how.append(f"{n}: by the image centre and size" if r["known"] == 0 else
-                   f"{n}: fitted to {r['known']} points")
-    msg = f"Points placed from the generic head ({'; '.join(how)}): {why}. Drag each point to the face."
+    how = "; ".join(f"{n}: {report[n]['how']}" for n in VIEWS)
+    msg = (f"Points placed from the generic head ({how}): {why}. Drag a few points to the face "
+           "(pupils, nose tip, chin, an ear), then press G to bring the rest.")
     return Initialisation(fdp, "generic", msg, report)

@@ -316,7 +316,7 @@ class AnnotationSession:
         sizes = {n: (p.width, p.height) for n, p in self.photos.items()}
         filled, report = complete_views(views, sizes, self.layout())
         return {"views": self.views_json(filled), "placed": {n: report[n]["placed"] for n in VIEWS},
-                "fitted_to": {n: report[n]["known"] for n in VIEWS}}
+                "how": {n: report[n]["how"] for n in VIEWS}}
 
     def fit(self, data) -> dict:
         """Fit the generic head to the page's points; the GLB is kept in :attr:`glb`.

@@ -179,7 +179,7 @@ def test_state_describes_photos_points_and_catalogue(client, session):
     s = client.get("/api/state").json()
     assert s["photos"]["front"] == {"name": "front.png", "width": 640, "height": 800, "note": None}
     assert s["initialisation"]["source"] == "generic"
-    assert "by the image centre and size" in s["initialisation"]["message"]
+    assert "(front: the image centre and size; side: the image centre and size)" in s["initialisation"]["message"]
     assert len(s["catalogue"]) == 84 and s["catalogue"][0]["description"] == FEATURE_POINTS["2.1"].description
     assert set(s["views"]["front"]["points"]) == set(shown_in("front"))
     assert all(c == GUESS_CONFIDENCE for c in s["views"]["side"]["confidence"].values())
@@ -338,7 +338,7 @@ def test_guesses_follow_the_points_placed_by_hand(client, layout):
         del views["front"]["confidence"][i]
     views["front"]["points"]["9.3"][0] += 2.0  # a hand is not exact
     r = client.post("/api/complete", json={"views": views, "replace_guesses": True}).json()
-    assert r["fitted_to"] == {"front": 5, "side": 0}
+    assert r["how"] == {"front": "fitted to 5 points", "side": "the front photo's scale and height"}
     front = r["views"]["front"]
     assert set(front["points"]) == set(shown_in("front")) and len(r["placed"]["front"]) == len(front["points"]) - 5
     assert front["points"]["9.3"] == views["front"]["points"]["9.3"]  # hand-placed points stay

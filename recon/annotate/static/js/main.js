@@ -287,8 +287,7 @@ class App {
       const r = await this.api.send("POST", "/api/complete", { views: this.store.toJSON(), replace_guesses: true });
       const n = r.placed.front.length + r.placed.side.length;
       this.store.commit("place guesses", (v) => { for (const name of this.viewNames) v[name] = r.views[name]; });
-      const how = this.viewNames.map((v) => r.fitted_to[v] >= 2 ? `${v}: fitted to ${r.fitted_to[v]} points`
-        : `${v}: by ${r.fitted_to[v] ? "one point and " : ""}the image size`).join("; ");
+      const how = this.viewNames.map((v) => `${v}: ${r.how[v]}`).join("; ");
       this.flash(n ? `Placed ${n} points from the generic head (${how}).` : "No point to place.");
     } catch (e) { this.error(e); }
   }
