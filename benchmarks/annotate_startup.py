@@ -1,17 +1,17 @@
 """Start-up time of ``recon annotate``: from the command's start to the page showing the
 pre-placed points, and the 3D preview's fit on demand.
 
-Two renders of the generic head, saved as phone-sized JPEGs, are opened with
-``python -m recon annotate FRONT SIDE --no-browser``; Debian's Chromium, already running
-(as a user's browser is), opens the printed address as soon as it appears. Times are from
-starting the command:
+The example photos (``data/example/``, or two given with ``--photos``) are opened with
+``python -m recon annotate FRONT SIDE --no-browser`` and a new annotation file;
+Debian's Chromium, already running (as a user's browser is), opens the printed address as
+soon as it appears. Times are from starting the command:
 
 - ``server_ready``: the address printed (the server listens);
 - ``points_shown``: the page has drawn the pre-placed points on both views;
 - ``photos_shown``: both photos are decoded and drawn as well (the page is usable);
 - ``fit_preview``: from asking for the 3D preview to the fitted head drawn.
 
-Run: ``python3 benchmarks/annotate_startup.py [--runs 3] [--size 2000]``. Prints
+Run: ``python3 benchmarks/annotate_startup.py [--runs 3] [--photos FRONT SIDE]``. Prints
 ``name: value unit`` lines, the last a summary (target: under 3 s to the points).
 """
 
@@ -34,20 +34,6 @@ CHROMIUM = "/usr/bin/chromium"
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
          "--disable-component-update", "--no-first-run"]
 TARGET_S = 3.0
-
-
-def _photos(folder: Path, size: int) -> list[Path]:
-    from PIL import Image
-
-    from mpeg4.generic_head import load_generic_head
-    from mpeg4.preview import render_views
-
-    paths = []
-    for name, image, _, _ in render_views(load_generic_head(), size=size, views=(("front", 0, 0), ("side", 90, 0))):
-        path = folder / f"{name}.jpg"
-        Image.fromarray(image).save(path, quality=90)
-        paths.append(path)
-    return paths
 
 
 def _run(browser, photos: list[Path], fdp: Path, fit: bool) -> dict[str, float]:
@@ -88,7 +74,8 @@ def _run(browser, photos: list[Path], fdp: Path, fit: bool) -> dict[str, float]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=3)
-    parser.add_argument("--size", type=int, default=2000, help="photo height in pixels (width is 4/5 of it)")
+    parser.add_argument("--photos", nargs=2, type=Path, metavar=("FRONT", "SIDE"),
+                        default=[ROOT / "data" / "example" / "front.jpg", ROOT / "data" / "example" / "side.jpg"])
     args = parser.parse_args()
     if not os.path.exists(CHROMIUM):
         print(f"skipped: Chromium not found at {CHROMIUM} (apt-get install chromium)")
@@ -97,14 +84,16 @@ def main() -> int:
 
     with tempfile.TemporaryDirectory() as tmp, sync_playwright() as p:
         tmp = Path(tmp)
-        photos = _photos(tmp, args.size)
+        photos = [p.resolve() for p in args.photos]
         browser = p.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
         runs = []
         for k in range(args.runs):
             runs.append(_run(browser, photos, tmp / f"run{k}.fdp.json", fit=(k == 0)))
         browser.close()
-    w = round(args.size * 0.8)
-    print(f"photos: 2 JPEG, {w}x{args.size} px")
+    from PIL import Image
+
+    sizes = ", ".join(f"{p.name} {Image.open(p).size[0]}x{Image.open(p).size[1]}" for p in photos)
+    print(f"photos: {sizes} px")
     print(f"points_drawn: {runs[0]['points']} points")
     for key in ("server_ready", "points_shown", "photos_shown"):
         values = [r[key] for r in runs]

@@ -33,20 +33,31 @@ def convert(head: Path = typer.Argument(..., help="Head to read (.glb, .gltf, .o
 
 
 @app.command()
-def author(head: Path = typer.Argument(..., help="Head with feature points and sculpted morph targets (.glb)."),
+def author(head: Path = typer.Argument(..., help="Head with feature points (.glb; sculpted morph targets for --method shapes)."),
            out: Path = typer.Option(..., "-o", "--out", help="Head to write with its animation tables (.glb)."),
-           value: float = typer.Option(512.0, help="FAP value the tables are authored at (interval borders).")
+           value: float = typer.Option(512.0, help="FAP value the tables are authored at (interval borders)."),
+           method: str = typer.Option("shapes", help="shapes: from the head's sculpted (ARKit-named) shapes; "
+                                                     "muscles: FaceEngine's muscle model placed from the feature points.")
            ) -> None:
-    """Author Facial Animation Tables from the head's sculpted (ARKit-named) shapes: the 66
-    low-level FAPs, the 15 visemes and the 7 expressions."""
+    """Author Facial Animation Tables: the 66 low-level FAPs, the 15 visemes and the 7 expressions."""
     from collections import Counter
 
-    from fmc.author import author_from_shapes, author_high_level
     from mpeg4.io import load_head, save_head
 
     h = load_head(head)
-    fat, report = author_from_shapes(h, value=value)
-    fat.update(author_high_level(h))
+    if method == "shapes":
+        from fmc.author import author_from_shapes, author_high_level
+
+        fat, report = author_from_shapes(h, value=value)
+        fat.update(author_high_level(h))
+    elif method == "muscles":
+        from fmc.muscles import MuscleRig, author_from_muscles, author_high_level_from_muscles
+
+        rig = MuscleRig.from_head(h)
+        fat, report = author_from_muscles(h, value=value, rig=rig)
+        fat.update(author_high_level_from_muscles(rig))
+    else:
+        raise InputError(f"unknown authoring method {method!r}", fix="use --method shapes or --method muscles")
     h.fat = fat
     save_head(h, out)
     routes = Counter(r.route for r in report)

@@ -46,6 +46,28 @@ def fit(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
 
 
 @app.command()
+def build(front: Path = typer.Argument(None, help="Front photo (JPEG/PNG); by default the one the annotations name."),
+          side: Path = typer.Argument(None, help="Side (profile) photo; by default the one the annotations name."),
+          fdp: Path = typer.Option(None, "--fdp", help="Annotations of both photos (*.fdp.json)."),
+          out: Path = typer.Option(Path("head_out"), "-o", "--out", help="Output folder."),
+          ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm (photos carry no size)."),
+          focal: float = typer.Option(None, "--focal", help="Focal length in pixels; orthographic cameras if omitted."),
+          method: str = typer.Option("dffd", "--method", help="dffd (exact Sibson) or rbf (thin-plate spline)."),
+          texture_size: int = typer.Option(2048, "--texture-size", help="Side of the square texture in pixels."),
+          atlas: bool = typer.Option(False, "--atlas", help="Re-pack the texture into a non-overlapping atlas (xatlas)."),
+          shape_from: Path = typer.Option(None, "--shape-from", help="Shape from this annotated pair (*.fdp.json)."),
+          texture_from: Path = typer.Option(None, "--texture-from", help="Texture from this annotated pair (*.fdp.json).")
+          ) -> None:
+    """Shape, texture and export in one step: head.glb, head.obj + head.mtl + texture.png, head.fdp.json, preview.png."""
+    from .build import run_build
+
+    paths = run_build(front, side, fdp, out, ipd_mm=ipd, focal_px=focal, method=method, texture_size=texture_size,
+                      atlas=atlas, shape_from=shape_from, texture_from=texture_from, progress=_say)
+    for kind, path in paths.items():
+        typer.echo(f"{kind}: {path}")
+
+
+@app.command()
 def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
              side: Path = typer.Argument(..., help="Side (profile) photo."),
              fdp: Path = typer.Option(None, "--fdp", help="Annotation file (*.fdp.json): read if it exists, "

@@ -31,7 +31,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mpeg4.catalogue import FEATURE_POINTS, FP_IDS
-from mpeg4.errors import InputError
 from mpeg4.io.fdp_json import FdpFile, ViewAnnotation, read_fdp_json
 
 __all__ = ["VIEWS", "GUESS_CONFIDENCE", "HEAD_FILL", "shown_in", "visible_side", "generic_layout", "ViewFit",
@@ -326,13 +325,6 @@ def detector() -> tuple[Callable | None, str | None]:
     return detect, None
 
 
-def _check_size(view: ViewAnnotation, size: tuple[int, int], name: str, photo, where: str) -> None:
-    if view.width and view.height and (view.width, view.height) != tuple(size):
-        raise InputError(f"the {name} points were made on a {view.width}x{view.height} image but {photo} is "
-                         f"{size[0]}x{size[1]}", where=where,
-                         fix="give the photo the points were made on, or another --fdp file")
-
-
 def initial_annotation(front: str | os.PathLike, side: str | os.PathLike, fdp_path: str | os.PathLike | None = None,
                        detect: Callable | None | bool = True, layout: Mapping | None = None,
                        sizes: Mapping[str, tuple[int, int]] | None = None) -> Initialisation:
@@ -356,19 +348,17 @@ def initial_annotation(front: str | os.PathLike, side: str | os.PathLike, fdp_pa
     -------
     Initialisation
     """
-    if sizes is None:
-        from recon.fit import image_size
+    from recon.fit import attach_photo_sizes
+    from recon.photos import photo_size
 
-        sizes = {"front": image_size(front), "side": image_size(side)}
-    photos = {"front": front, "side": side}
+    if sizes is None:
+        sizes = {"front": photo_size(front, "front photo"), "side": photo_size(side, "side photo")}
+    photos = {"front": os.fspath(front), "side": os.fspath(side)}
     if fdp_path is not None and os.path.exists(fdp_path):
         fdp = read_fdp_json(fdp_path)
         for n in VIEWS:
-            if n in fdp.views:
-                _check_size(fdp.views[n], sizes[n], n, photos[n], os.fspath(fdp_path))
-        for n in VIEWS:
-            v = fdp.views.setdefault(n, ViewAnnotation())
-            v.width, v.height = sizes[n]
+            fdp.views.setdefault(n, ViewAnnotation())
+        attach_photo_sizes(fdp, sizes, os.fspath(fdp_path), photos)
         counts = ", ".join(f"{len(fdp.views[n].points)} on the {n} photo" for n in VIEWS)
         return Initialisation(fdp, "file", f"Points loaded from {os.path.basename(fdp_path)} ({counts}).")
     why = None
@@ -382,8 +372,7 @@ def initial_annotation(front: str | os.PathLike, side: str | os.PathLike, fdp_pa
             found = detect(os.fspath(front), os.fspath(side))
             if not isinstance(found, FdpFile):
                 raise TypeError(f"detect returned {type(found).__name__}, not an FdpFile")
-            for n, v in found.views.items():
-                _check_size(v, sizes[n], n, photos[n], "automatic detection")
+            attach_photo_sizes(found, sizes, "automatic detection", photos)
         except Exception as e:  # detection is a help, not a requirement: keep the tool usable
             traceback.print_exc(file=sys.stderr)
             why = f"automatic detection failed ({e.__class__.__name__}: {e})"

@@ -19,11 +19,11 @@ import os
 import tempfile
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from mpeg4.catalogue import FEATURE_POINTS, FP_IDS
-from mpeg4.errors import InputError, require_file
+from mpeg4.errors import InputError
 from mpeg4.io.atomic import atomic_write
 from mpeg4.io.fdp_json import FORMAT, FdpFile, ViewAnnotation, parse_fdp, write_fdp_json
 
@@ -44,19 +44,21 @@ class SaveConflict(Exception):
 
 @dataclass
 class Photo:
-    """One of the two photos.
+    """One of the two photos, as displayed: upright by its EXIF orientation, as every stage
+    of recon reads it (:mod:`recon.photos`).
 
     Attributes
     ----------
     view : {"front", "side"}
     path : Path
     width, height : int
-        Of the stored pixel grid (what :func:`recon.fit.image_size` reads).
+        As displayed (:func:`recon.photos.photo_size`).
     media_type : str
     note : str or None
-        Something the user should know (e.g. a rotation flag the tool ignores).
+        Something the user should know about how the photo is shown.
     reencode : bool
-        Sent as PNG made from the stored pixels instead of the file itself.
+        Sent as a PNG of the displayed pixels instead of the file itself (a rotated photo,
+        or a format browsers do not show).
     """
 
     view: str
@@ -66,41 +68,40 @@ class Photo:
     media_type: str
     note: str | None = None
     reencode: bool = False
-    _png: bytes | None = None
+    _png: bytes | None = field(default=None, repr=False)
 
     @classmethod
     def open(cls, view: str, path) -> Photo:
-        from PIL import Image, UnidentifiedImageError
+        from PIL import Image
 
-        path = Path(require_file(path, f"{view} photo")).resolve()
-        try:
-            with Image.open(path) as im:
-                fmt, (w, h) = im.format, im.size
-                orientation = im.getexif().get(0x0112, 1)
-        except (UnidentifiedImageError, OSError) as e:
-            raise InputError(f"not an image this tool can read ({e.__class__.__name__})", where=path,
-                             fix="give a JPEG or PNG photo") from None
-        note = None
+        from recon.photos import photo_size
+
+        kind = f"{view} photo"
+        w, h = photo_size(path, kind)  # checks the file and says what is wrong with it
+        path = Path(path).resolve()
+        with Image.open(path) as im:
+            fmt, orientation = im.format, im.getexif().get(0x0112, 1)
         media = _WEB_FORMATS.get(fmt)
+        note = None
         reencode = media is None
         if orientation not in (1, None):
-            # Browsers would turn the photo upright, but recon fit (and every later stage)
-            # reads the stored pixels: show those, so that the points mean the same to both.
-            note = (f"the photo carries a rotation flag (EXIF orientation {orientation}); it is shown as "
-                    "stored, which is how recon reads it: save it upright if it looks sideways")
+            # Browsers differ in whether they turn an image drawn in SVG upright: send the
+            # upright pixels themselves.
+            note = f"shown upright by its EXIF orientation tag ({orientation}), as recon reads it"
             reencode = True
         return cls(view, path, w, h, "image/png" if reencode else media, note, reencode)
 
     def content(self) -> bytes | None:
-        """PNG bytes of the stored pixels when the file is not sent as it is, else None."""
+        """PNG bytes of the displayed pixels when the file is not sent as it is, else None."""
         if not self.reencode:
             return None
         if self._png is None:
             from PIL import Image
 
-            with Image.open(self.path) as im:
-                buf = io.BytesIO()
-                im.convert("RGB").save(buf, format="PNG", compress_level=1)
+            from recon.photos import read_photo
+
+            buf = io.BytesIO()
+            Image.fromarray(read_photo(self.path, f"{self.view} photo")).save(buf, format="PNG", compress_level=1)
             self._png = buf.getvalue()
         return self._png
 
@@ -274,19 +275,16 @@ class AnnotationSession:
             The file is not a valid annotation of these photos.
         """
         from mpeg4.io.fdp_json import read_fdp_json
+        from recon.fit import attach_photo_sizes
 
         with self._lock:
             if not self.fdp_path.exists():
                 raise FileNotFoundError(self.fdp_path)
             fdp = read_fdp_json(self.fdp_path)
             for n in VIEWS:
-                v = fdp.views.setdefault(n, ViewAnnotation())
-                p = self.photos[n]
-                if v.width and v.height and (v.width, v.height) != (p.width, p.height):
-                    raise InputError(f"the {n} points were made on a {v.width}x{v.height} image but {p.path.name} "
-                                     f"is {p.width}x{p.height}", where=self.fdp_path,
-                                     fix="this file belongs to other photos")
-                v.width, v.height = p.width, p.height
+                fdp.views.setdefault(n, ViewAnnotation())
+            attach_photo_sizes(fdp, {n: (p.width, p.height) for n, p in self.photos.items()}, os.fspath(self.fdp_path),
+                               {n: p.path.name for n, p in self.photos.items()})
             self._base = fdp
             self.views = {n: fdp.views[n] for n in VIEWS}
             disk = _hash(self.fdp_path)

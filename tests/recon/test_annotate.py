@@ -161,7 +161,7 @@ def test_initial_annotation_prefers_the_users_file_and_checks_its_photo_sizes(ph
     assert init.source == "file" and list(init.fdp.views["front"].points) == ["9.3"]
     assert init.fdp.views["side"].points == {} and (init.fdp.views["side"].width, init.fdp.views["side"].height) == SIDE_SIZE
     write_fdp_json(path, FdpFile(views={"front": ViewAnnotation("front.png", 100, 100, {})}))
-    with pytest.raises(InputError, match=r"front points were made on a 100x100 image but .*front.png is 640x800"):
+    with pytest.raises(InputError, match=r"front annotations were made on a 100x100 image but .*front.png is 640x800"):
         initial_annotation(*photos, path, layout=layout)
 
 
@@ -195,23 +195,28 @@ def test_photos_are_served_as_stored(client, photos):
     assert r.headers["content-type"] == "image/jpeg" and r.content == side.read_bytes()
 
 
-def test_a_rotation_flag_is_reported_and_the_stored_pixels_served(tmp_path):
+def test_a_rotated_photo_is_served_upright_as_recon_reads_it(tmp_path):
+    from recon.photos import read_photo
+
     exif = Image.Exif()
-    exif[0x0112] = 6
+    exif[0x0112] = 6  # stored sideways: turn 90 degrees clockwise to view
     front = _photo(tmp_path / "f.jpg", (320, 240), exif=exif.tobytes())
     side = _photo(tmp_path / "s.png", (300, 400))
     s = AnnotationSession(front, side, tmp_path / "a.fdp.json", detect=False)
     c = TestClient(create_app(s, TOKEN), base_url=BASE, headers={TOKEN_HEADER: TOKEN})
     state = c.get("/api/state").json()
-    assert "EXIF orientation 6" in state["photos"]["front"]["note"]
-    assert state["photos"]["front"]["width"] == 320  # the stored grid, as recon fit reads it
+    assert "EXIF orientation tag (6)" in state["photos"]["front"]["note"]
+    assert (state["photos"]["front"]["width"], state["photos"]["front"]["height"]) == (240, 320)
+    assert max(p[0] for p in state["views"]["front"]["points"].values()) < 240  # placed on the upright photo
     r = c.get("/api/photo/front")
     assert r.headers["content-type"] == "image/png"
     import io
 
     served = np.asarray(Image.open(io.BytesIO(r.content)))
-    assert served.shape == (240, 320, 3)
-    assert np.array_equal(served, np.asarray(Image.open(front).convert("RGB")))
+    assert served.shape == (320, 240, 3)
+    assert np.array_equal(served, read_photo(front))
+    stored = np.asarray(Image.open(front).convert("RGB"))
+    assert np.array_equal(served, np.rot90(stored, -1))
     s.close()
 
 
