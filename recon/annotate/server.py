@@ -250,12 +250,14 @@ def create_app(session: AnnotationSession, token: str, max_body: int = MAX_BODY)
     handlers = {
         InputError: lambda request, e: _input_error(e),
         _MalformedJSON: lambda request, e: _error(400, str(e), fix="send valid JSON"),
-        SaveConflict: lambda request, e: _error(409, str(e), fix="load the file from disk, or save again to overwrite it"),
+        SaveConflict: lambda request, e: _error(409, str(e),
+                                                fix="load the file from disk, or save again to overwrite it"),
     }
     return Starlette(routes=routes, middleware=middleware, exception_handlers=handlers)
 
 
 def annotate(front, side, fdp=None, open_browser: bool = True, port: int = 0, detect=True,
+             ipd_mm: float | None = None, focal_px: float | None = None,
              ready: Callable[[str], None] | None = None) -> os.PathLike:
     """``recon annotate``: serve the annotation page for two photos until interrupted.
 
@@ -272,6 +274,8 @@ def annotate(front, side, fdp=None, open_browser: bool = True, port: int = 0, de
         0 for any free port.
     detect : callable or bool
         Automatic placement (see :func:`recon.annotate.placement.initial_annotation`).
+    ipd_mm, focal_px : float, optional
+        For the 3D preview's fit, as ``recon fit`` takes them.
     ready : callable, optional
         Called with the page's URL (which carries the token) once the server listens.
 
@@ -282,7 +286,7 @@ def annotate(front, side, fdp=None, open_browser: bool = True, port: int = 0, de
     """
     import uvicorn
 
-    session = AnnotationSession(front, side, fdp, detect=detect)
+    session = AnnotationSession(front, side, fdp, detect=detect, ipd_mm=ipd_mm, focal_px=focal_px)
     token = secrets.token_urlsafe(24)
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     try:

@@ -135,9 +135,12 @@ class AnnotationSession:
         :func:`default_fdp_path` when None.
     detect : callable or bool
         Passed to :func:`recon.annotate.placement.initial_annotation`.
+    ipd_mm, focal_px : float, optional
+        For the 3D preview's fit (see :func:`recon.fit.fit_head`).
     """
 
-    def __init__(self, front, side, fdp_path=None, detect=True):
+    def __init__(self, front, side, fdp_path=None, detect=True, ipd_mm: float | None = None,
+                 focal_px: float | None = None):
         self.photos = {"front": Photo.open("front", front), "side": Photo.open("side", side)}
         self.fdp_path = Path(fdp_path) if fdp_path is not None else default_fdp_path(front)
         if self.fdp_path.is_dir():
@@ -156,6 +159,7 @@ class AnnotationSession:
         self._tmp = tempfile.TemporaryDirectory(prefix="recon-annotate-")
         self.glb: bytes | None = None
         self.fits = 0
+        self.fit_options = {"focal_px": focal_px} | ({} if ipd_mm is None else {"ipd_mm": ipd_mm})
 
     # --- what the page needs ------------------------------------------------------
     def state(self) -> dict:
@@ -320,7 +324,7 @@ class AnnotationSession:
         """Fit the generic head to the page's points; the GLB is kept in :attr:`glb`.
 
         Returns a summary: 3D points, where each came from, height disagreements between
-        the photos (mm), the time taken.
+        the photos (mm), the camera and size assumptions, the time taken.
         """
         from mpeg4.io import save_head
         from recon.fit import fit_head
@@ -328,7 +332,7 @@ class AnnotationSession:
         views = self.parse_views(data)
         t0 = time.perf_counter()
         with self._lock:
-            head, cal = fit_head(FdpFile(views=views), where="the page's points")
+            head, cal = fit_head(FdpFile(views=views), where="the page's points", **self.fit_options)
             # The preview shows the shape: no morph targets or tables to carry.
             head.morph_targets = {}
             head.fat = None
@@ -338,7 +342,7 @@ class AnnotationSession:
             self.fits += 1
         return {"glb": f"/api/head.glb?fit={self.fits}", "seconds": round(time.perf_counter() - t0, 3),
                 "points3d": {i: [round(float(c), 6) for c in p] for i, p in head.fp_positions().items()},
-                "sources": cal.source, "roll_deg": round(cal.roll_deg, 3),
+                "sources": cal.source, "roll_deg": round(cal.roll_deg, 3), "assumptions": cal.assumptions,
                 "height_residual_mm": {i: round(float(r), 2) for i, r in cal.height_residual_mm.items()},
                 "bytes": len(self.glb)}
 

@@ -156,10 +156,12 @@ def test_the_landmarks_seam():
 
 def test_initial_annotation_prefers_the_users_file_and_checks_its_photo_sizes(photos, tmp_path, layout):
     path = tmp_path / "a.fdp.json"
-    write_fdp_json(path, FdpFile(views={"front": ViewAnnotation("front.png", *FRONT_SIZE, {"9.3": np.array([5.0, 6.0])})}))
+    nose = {"9.3": np.array([5.0, 6.0])}
+    write_fdp_json(path, FdpFile(views={"front": ViewAnnotation("front.png", *FRONT_SIZE, nose)}))
     init = initial_annotation(*photos, path, detect=lambda f, s: pytest.fail("a saved file comes first"), layout=layout)
     assert init.source == "file" and list(init.fdp.views["front"].points) == ["9.3"]
-    assert init.fdp.views["side"].points == {} and (init.fdp.views["side"].width, init.fdp.views["side"].height) == SIDE_SIZE
+    side = init.fdp.views["side"]
+    assert side.points == {} and (side.width, side.height) == SIDE_SIZE
     write_fdp_json(path, FdpFile(views={"front": ViewAnnotation("front.png", 100, 100, {})}))
     with pytest.raises(InputError, match=r"front annotations were made on a 100x100 image but .*front.png is 640x800"):
         initial_annotation(*photos, path, layout=layout)
@@ -254,7 +256,8 @@ def test_save_writes_a_valid_file_and_keeps_a_backup_of_the_previous_one(client,
 
 def test_save_keeps_what_the_file_holds_besides_the_points(photos, tmp_path):
     path = tmp_path / "head.fdp.json"
-    write_fdp_json(path, FdpFile(views={"front": ViewAnnotation("front.png", *FRONT_SIZE, {"9.3": np.array([5.0, 6.0])})},
+    nose = {"9.3": np.array([5.0, 6.0])}
+    write_fdp_json(path, FdpFile(views={"front": ViewAnnotation("front.png", *FRONT_SIZE, nose)},
                                  points3d={"9.3": np.array([0.0, 0.01, 0.1])}, metadata={"source": "recon fit"}))
     s = AnnotationSession(*photos, path, detect=False)
     c = TestClient(create_app(s, TOKEN), base_url=BASE, headers={TOKEN_HEADER: TOKEN})
@@ -291,7 +294,8 @@ def test_a_file_changed_on_disk_is_not_overwritten_unless_asked(client, session)
 @pytest.mark.parametrize("change, status, needle", [
     (lambda v: v["front"]["points"].update({"12.1": [1, 2]}), 422, "unknown feature point '12.1'"),
     (lambda v: v["front"]["points"].update({"9.3": [900, 2]}), 422, "lies outside the 640x800 image"),
-    (lambda v: v["front"]["points"].update({"9.3": [1, "x"]}), 422, 'views.front.points["9.3"]: expected [x, y] numbers'),
+    (lambda v: v["front"]["points"].update({"9.3": [1, "x"]}), 422,
+     'views.front.points["9.3"]: expected [x, y] numbers'),
     (lambda v: v["front"]["confidence"].update({"9.3": 2}), 422, "2 is greater than the maximum of 1"),
     (lambda v: v["front"]["points"].update({"3.5": v["front"]["points"]["3.6"],
                                             "3.6": v["front"]["points"]["3.5"]}), 422, "3.5/3.6"),
@@ -375,6 +379,16 @@ def test_fit_serves_a_valid_head(client, validate_gltf, tmp_path):
     assert max(abs(d) for d in fit["height_residual_mm"].values()) < 1.0
 
 
+def test_the_preview_fit_uses_the_given_camera_and_size(photos, tmp_path):
+    s = AnnotationSession(*photos, tmp_path / "a.fdp.json", detect=False, ipd_mm=58.0, focal_px=4000.0)
+    c = TestClient(create_app(s, TOKEN), base_url=BASE, headers={TOKEN_HEADER: TOKEN})
+    fit = c.post("/api/fit", json={"views": _views(c)}).json()
+    assert fit["assumptions"]["ipd_mm"] == 58.0 and fit["assumptions"]["camera"] == "perspective, focal length 4000 px"
+    ipd = np.linalg.norm(np.subtract(fit["points3d"]["3.5"], fit["points3d"]["3.6"]))
+    assert ipd == pytest.approx(0.058, abs=0.001)  # the pupils sit on the rigidly moved eyeballs
+    s.close()
+
+
 def test_fit_errors_name_the_missing_points(client):
     views = _views(client)
     for i in ("3.5", "3.6"):
@@ -400,7 +414,8 @@ def test_every_api_call_needs_the_token(idle, method, path, token):
     assert c.request(method, path + "?token=" + TOKEN).status_code == 401  # not in the query either
 
 
-@pytest.mark.parametrize("host", ["evil.example:8765", "evil.example", "127.0.0.1.evil.example", "192.168.1.5:8765", ""])
+@pytest.mark.parametrize("host", ["evil.example:8765", "evil.example", "127.0.0.1.evil.example", "192.168.1.5:8765",
+                                  ""])
 def test_a_foreign_host_header_is_refused(idle, host):
     client = TestClient(create_app(idle, TOKEN), base_url=BASE, headers={TOKEN_HEADER: TOKEN})
     for path in ("/", "/api/state", "/static/js/main.js"):
