@@ -68,6 +68,27 @@ def build(front: Path = typer.Argument(None, help="Front photo (JPEG/PNG); by de
 
 
 @app.command()
+def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
+             side: Path = typer.Argument(..., help="Side (profile) photo."),
+             fdp: Path = typer.Option(None, "--fdp", help="Annotation file (*.fdp.json): read if it exists, "
+                                                          "saved as you work [default: FRONT.fdp.json beside it]."),
+             browser: bool = typer.Option(True, "--browser/--no-browser", help="Open the page in the browser."),
+             port: int = typer.Option(0, "--port", help="Port on 127.0.0.1 (0: any free one)."),
+             ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm, for the 3D preview."),
+             focal: float = typer.Option(None, "--focal", help="Focal length in pixels, for the 3D preview; "
+                                                               "orthographic cameras if omitted.")) -> None:
+    """Place and correct the feature points on the two photos in a local web page."""
+    from .annotate import annotate as run_annotate
+
+    def ready(url: str) -> None:
+        typer.echo(f"annotate: {url}")
+        _say("serving on 127.0.0.1 only; press Ctrl-C to stop")
+
+    path = run_annotate(front, side, fdp, open_browser=browser, port=port, ipd_mm=ipd, focal_px=focal, ready=ready)
+    typer.echo(f"fdp: {path}")
+
+
+@app.command()
 def preview(head: Path = typer.Argument(..., help="Head file (.glb, .gltf or .obj with its .fdp.json)."),
             out: Path = typer.Option(Path("preview.png"), "-o", "--out", help="PNG to write."),
             size: int = typer.Option(720, help="Height of each view in pixels."),
