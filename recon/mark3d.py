@@ -1008,10 +1008,10 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
     else:
         raw, where = load_mesh(mesh), where or os.fspath(mesh)
     warnings = check_mesh(raw, where)
-    detect = landmark_detector() if detect is None else detect
-    name = getattr(detect, "__name__", type(detect).__name__)
     say("finding the neutral frame")
     frame = estimate_frame(raw, unit, up, forward, where)
+    detect = landmark_detector() if detect is None else detect
+    name = getattr(detect, "__name__", type(detect).__name__)
     with tempfile.TemporaryDirectory(prefix="mark3d-") as tmp:
         head = place_mesh(raw, frame.matrix, None, where)
         for k in range(max(1, passes)):
