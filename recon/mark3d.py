@@ -68,6 +68,7 @@ MIN_POINTS = 12
 _HEAD_SIZE = 0.3  # metres: a head with some neck, for choosing the unit
 _NOSE_CAP = 0.015  # metres: depth of the cap in which the nose ends
 _SLICE = 0.08  # metres beyond the nose: the skull above, the neck (or nothing) below
+_NOT_A_NOSE = 0.8  # a narrowest end at least this share of the next one is no nose
 _MIRRORED = {i: fp.mirror for i, fp in FEATURE_POINTS.items() if fp.mirror}
 
 
@@ -319,22 +320,28 @@ def estimate_frame(head: Head, unit: str | None = None, up: str | None = None, f
     basis = [np.eye(3)[k] for k in np.argsort(-np.abs(np.eye(3) @ lateral))[1:]]
     basis = [b - (b @ lateral) * lateral for b in basis]
     basis = [b / np.linalg.norm(b) for b in basis]
-    dirs = [sgn * b for b in basis for sgn in (1.0, -1.0)]
-    widths = [_cap_width(pts, d, lateral, _NOSE_CAP) for d in dirs]
+    dirs, widths = [], []
+    for d in (sgn * b for b in basis for sgn in (1.0, -1.0)):
+        # A tilted face ends in its nose a little off the file's axis: look around it.
+        side = np.cross(lateral, d)
+        turned = [np.cos(a) * d + np.sin(a) * side for a in np.radians(np.arange(-15, 16, 5))]
+        w = [_cap_width(pts, e, lateral, _NOSE_CAP) for e in turned]
+        dirs.append(turned[int(np.argmin(w))])
+        widths.append(min(w))
     order = np.argsort(widths)
     nose = dirs[order[0]]
     ratio = widths[order[0]] / max(widths[order[1]], 1e-12)
     if given_fwd is not None:
         f = given_fwd - (given_fwd @ lateral) * lateral
         f /= np.linalg.norm(f)
-        if nose @ f < -0.5 and ratio < 0.6:
+        if nose @ f < -0.5 and ratio < _NOT_A_NOSE:
             raise InputError(f"the head faces backwards for --forward {forward}: the surface ends in a nose "
                              f"towards {_axis_name(nose)}, and the view from {forward} shows the back of the head",
                              where=where, fix=f"give --forward {_axis_name(nose)}, or leave --forward out to "
                                               "detect it")
         notes.append(f"forward: {forward} (given)")
     else:
-        if ratio > 0.6:
+        if ratio > _NOT_A_NOSE:
             raise InputError(f"no face found: in no direction does the surface end in a nose (its narrowest end "
                              f"is {widths[order[0]] * 100:.1f} cm wide, the next {widths[order[1]] * 100:.1f} cm)",
                              where=where, fix="give a head mesh (a face with a nose), or --up and --forward")

@@ -1,0 +1,38 @@
+"""fmc clone onto a head mesh without feature points: marked first, with a warning."""
+
+import numpy as np
+import pytest
+
+pytest.importorskip("fast_simplification", reason="fast-simplification is not installed (pip install '.[test]')")
+
+from chain import clone_onto, target_head  # noqa: E402
+from mpeg4.generic_head import generic_head_path  # noqa: E402
+from recon.mark3d import mark_file  # noqa: E402
+from recon.synthetic import load_ict, perfect_detector, remeshed_identity  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def mesh(ict_npz, tmp_path_factory):
+    return remeshed_identity(5, tmp_path_factory.mktemp("clone"), load_ict(ict_npz), fmt="obj")
+
+
+@pytest.mark.slow
+def test_clone_onto_an_unmarked_mesh(mesh):
+    head, warnings = clone_onto(generic_head_path(), mesh.path, detect=perfect_detector(mesh.points))
+    assert "unreviewed" in warnings[0] and "fmc mark" in warnings[0]
+    assert len(head.morph_targets) == 55 and {"skin", "eye_l", "tongue"} <= set(head.parts)
+    # The cloned jaw opens the target's mouth: the chin goes down and back by about what it
+    # does on the generic head (the two faces are of a size).
+    moved = head.fp_position("2.1", head.morphed({"jawOpen": 1.0})) - head.fp_position("2.1")
+    assert moved[1] < -0.015 and moved[2] < -0.01 and abs(moved[0]) < 0.002
+    # Eyes turn about their own centres, which marking found.
+    assert np.linalg.norm(head.parts["eye_l"].centre - head.fp_position("3.5")) < 0.02
+
+
+def test_marked_but_unreviewed_points_are_said_so(mesh, tmp_path):
+    path = tmp_path / mesh.path.name
+    path.write_bytes(mesh.path.read_bytes())
+    mark_file(path, detect=perfect_detector(mesh.points), passes=1)
+    head, warnings = target_head(path, detect=lambda v: pytest.fail("the saved points are used"))
+    assert len(warnings) == 1 and "not reviewed" in warnings[0] and "recon annotate" in warnings[0]
+    assert "2.1" in head.feature_points
