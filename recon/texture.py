@@ -571,7 +571,9 @@ def _sections(vertices: np.ndarray, triangles: np.ndarray, heights: np.ndarray) 
     """For each height, the (K, 2) (x, z) points where the mesh's edges cross the plane
     y = height (the cross-section's outline, unordered)."""
     tri = np.asarray(triangles)
-    edges = np.unique(np.sort(np.r_[tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]], axis=1), axis=0)
+    # Every triangle's three edges; an edge shared by two triangles gives its crossing twice,
+    # which neither a hull nor a widest point minds (and saves sorting the edges).
+    edges = np.r_[tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]
     a, b = vertices[edges[:, 0]], vertices[edges[:, 1]]
     lo, hi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
     out = []
@@ -801,6 +803,16 @@ def photo_background(photo: np.ndarray, tol: float = 14.0, border: int = 6) -> n
     return np.isin(labels, touching) & close
 
 
+def _fill_outside(photo: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """The photo with what lies outside ``valid`` filled from inside (push–pull at half
+    resolution, which is all a smooth fill needs; the valid pixels keep their values)."""
+    h, w = valid.shape
+    half = cv2.resize(photo, ((w + 1) // 2, (h + 1) // 2), interpolation=cv2.INTER_AREA)
+    vhalf = cv2.resize(valid.astype(np.uint8), ((w + 1) // 2, (h + 1) // 2), interpolation=cv2.INTER_NEAREST) > 0
+    filled = cv2.resize(fill_empty(half, vhalf), (w, h), interpolation=cv2.INTER_LINEAR)
+    return np.where(valid[..., None], photo, filled)
+
+
 def _head_meshes(head: Head):
     from mpeg4.preview import head_meshes
 
@@ -924,10 +936,10 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
         if not head_mask.any():
             raise InputError(f"the head does not show in the {key} photo", where="texture",
                              fix="check the feature points of that photo")
-        fill[key] = fill_empty(photo, head_mask)
+        fill[key] = _fill_outside(photo, head_mask)
     layers = [cv2.warpAffine(fill["front"], A[:2], (size, size), flags=cv2.INTER_LINEAR,
                              borderMode=cv2.BORDER_REPLICATE)]
-    grid = max(1, size // 512)  # the warps are piecewise affine: a coarse map, linearly refined
+    grid = max(1, size // 256)  # the warps are piecewise affine: a coarse map, linearly refined
     coarse = (int(np.ceil(size / grid)) + 1,) * 2
     G = np.linalg.inv(A) @ np.diag([grid, grid, 1.0])  # coarse grid pixel → composite pixel
     for photo in (fill["side"], np.ascontiguousarray(fill["side"][:, ::-1])):
