@@ -57,10 +57,11 @@ __all__ = ["FEATURE_LINE", "REGIONS", "FeatureLineWarp", "SkinTexture", "feature
            "seam_band", "seam_gradient", "photo_background", "texture_skin", "textured_head"]
 
 #: The feature points of the feature line on the face's left, from the top of the skull to
-#: the angle of the jaw (Lee et al.); below the jaw the line follows the neck's outline in
-#: the front view (:func:`feature_line`). The right line is the mirror image.
+#: the angle of the jaw (Lee et al.); below the jaw the line runs down the neck where it
+#: faces half way between the photos (:func:`feature_line`). The right line is the mirror
+#: image.
 FEATURE_LINE = ("11.4", "11.3", "4.5", "10.9", "10.7", "2.13")
-_NECK_STEP = 0.01  # metres between the neck outline's points
+_NECK_STEP = 0.01  # metres between the neck line's points
 
 #: Texture regions of the skin: which layer a triangle samples.
 REGIONS = ("front", "seen side", "mirrored side", "hidden", "fold")
@@ -89,10 +90,10 @@ def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, 
     """The feature line of one side of the face, top to bottom.
 
     Its feature points (:data:`FEATURE_LINE`, mirrored for ``"R"``) and, below the angle of
-    the jaw, the neck's outline seen from the front: at every :data:`_NECK_STEP` down to
-    the bottom of the skin, the widest point of the skin's cross-section on that side. The
-    front photo sees the neck squarely, so the line hands it the neck's front; the side
-    photos keep what lies behind.
+    the jaw, a line down the neck: at every :data:`_NECK_STEP` down to the bottom of the
+    skin, the point of the skin's cross-section (its convex outline) that faces half way
+    between the front and the side, where both photos see the neck at 45°. The front photo
+    gets the neck's front, the side photos what lies behind.
 
     Returns
     -------
@@ -111,12 +112,20 @@ def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, 
     v = np.asarray(skin_vertices, float)
     heights = np.arange(fps[-1, 1] - _NECK_STEP, v[:, 1].min() + 0.004, -_NECK_STEP)
     neck = []
+    from scipy.spatial import ConvexHull
+
     for y, xz in zip(heights, _sections(v, skin_triangles, heights)):
-        on_side = xz[xz[:, 0] * sign > 0]
-        if len(on_side) < 3:
+        if (xz[:, 0] * sign > 0).sum() < 3:
             break
-        k = int(np.argmax(on_side[:, 0] * sign))
-        neck.append([on_side[k, 0], y, on_side[k, 1]])
+        try:
+            hull = xz[ConvexHull(xz).vertices]
+        except Exception:  # a degenerate section: the line ends here
+            break
+        # The outline's point that faces half way between the two cameras (its support
+        # point along the 45° direction): both photos see the neck there at 45°, not the
+        # front one at a grazing angle.
+        k = int(np.argmax(hull @ np.array([sign, 1.0])))
+        neck.append([hull[k, 0], y, hull[k, 1]])
     points = np.vstack([fps, np.array(neck).reshape(-1, 3)])
     return points, np.r_[np.ones(len(fps), bool), np.zeros(len(neck), bool)]
 
