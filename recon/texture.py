@@ -157,8 +157,7 @@ def _visible(points: np.ndarray, cam: Camera, depth: np.ndarray) -> np.ndarray:
 # Extra directions (yaw, pitch in degrees) from which a vertex may be seen, to tell the
 # inside of the mouth and the eye sockets (seen from nowhere) from surfaces the photos
 # merely miss (behind the ears, under the chin).
-_AROUND = ((180.0, 0.0), (135.0, 0.0), (-135.0, 0.0), (0.0, 70.0), (90.0, 50.0), (-90.0, 50.0), (0.0, -60.0),
-           (45.0, 0.0), (-45.0, 0.0))
+_AROUND = ((180.0, 0.0), (135.0, 0.0), (-135.0, 0.0), (0.0, 70.0), (0.0, -60.0), (45.0, 0.0), (-45.0, 0.0))
 
 
 def _seen_from_around(head: Head, points: np.ndarray, size: int = 384) -> np.ndarray:
@@ -823,9 +822,10 @@ def _fill_outside(photo: np.ndarray, valid: np.ndarray) -> np.ndarray:
 
 
 def _head_meshes(head: Head):
-    from mpeg4.preview import head_meshes
+    """The head's parts for depth renders only: no textures to upload, no normals to compute."""
+    from mpeg4.render import RenderMesh
 
-    return head_meshes(head)
+    return [RenderMesh(p.vertices, p.triangles, normals=np.zeros_like(p.vertices)) for p in head.parts.values()]
 
 
 def _depth(meshes, cam: Camera) -> np.ndarray:
