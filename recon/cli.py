@@ -68,23 +68,29 @@ def build(front: Path = typer.Argument(None, help="Front photo (JPEG/PNG); by de
 
 
 @app.command()
-def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
-             side: Path = typer.Argument(..., help="Side (profile) photo."),
+def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG), or a head mesh (.glb, .gltf, .obj, "
+                                                    ".ply) for the 3D mode."),
+             side: Path = typer.Argument(None, help="Side (profile) photo (none in the 3D mode)."),
              fdp: Path = typer.Option(None, "--fdp", help="Annotation file (*.fdp.json): read if it exists, "
                                                           "saved as you work [default: FRONT.fdp.json beside it]."),
              browser: bool = typer.Option(True, "--browser/--no-browser", help="Open the page in the browser."),
              port: int = typer.Option(0, "--port", help="Port on 127.0.0.1 (0: any free one)."),
              ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm, for the 3D preview."),
              focal: float = typer.Option(None, "--focal", help="Focal length in pixels, for the 3D preview; "
-                                                               "orthographic cameras if omitted.")) -> None:
-    """Place and correct the feature points on the two photos in a local web page."""
+                                                               "orthographic cameras if omitted."),
+             unit: str = typer.Option(None, help="3D mode: the mesh's unit (m, cm, mm, in) [default: from its size]."),
+             up: str = typer.Option(None, help="3D mode: the mesh's up axis (+y, +z, ...) [default: detected]."),
+             forward: str = typer.Option(None, help="3D mode: the axis the face looks along [default: detected].")
+             ) -> None:
+    """Place and correct the feature points on the two photos, or on a head mesh, in a local web page."""
     from .annotate import annotate as run_annotate
 
     def ready(url: str) -> None:
         typer.echo(f"annotate: {url}")
         _say("serving on 127.0.0.1 only; press Ctrl-C to stop")
 
-    path = run_annotate(front, side, fdp, open_browser=browser, port=port, ipd_mm=ipd, focal_px=focal, ready=ready)
+    path = run_annotate(front, side, fdp, open_browser=browser, port=port, ipd_mm=ipd, focal_px=focal, ready=ready,
+                        unit=unit, up=up, forward=forward)
     typer.echo(f"fdp: {path}")
 
 
