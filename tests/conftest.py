@@ -33,3 +33,20 @@ def ict_npz():
     if not ICT_NPZ.exists():
         pytest.skip(f"ICT FaceKit test data not found at {ICT_NPZ}")
     return ICT_NPZ
+
+
+@pytest.fixture(scope="session")
+def remeshed(ict_npz, tmp_path_factory):
+    """A function (seed, fmt) -> recon.synthetic.MeshFile, each made once per test run."""
+    pytest.importorskip("fast_simplification", reason="fast-simplification is not installed (pip install '.[test]')")
+    from recon.synthetic import load_ict, remeshed_identity
+
+    cache = {}
+
+    def get(seed, fmt):
+        if (seed, fmt) not in cache:
+            cache[seed, fmt] = remeshed_identity(seed, tmp_path_factory.mktemp(f"remeshed{seed}"), load_ict(ict_npz),
+                                                 fmt=fmt)
+        return cache[seed, fmt]
+
+    return get

@@ -98,7 +98,8 @@ class MeshSession:
         else:
             own = load_head(mesh)
             if own.feature_points and own.metadata.get("mark3d") is None and len(own.feature_points) >= 10:
-                self._start(own, None, {}, {i: own.fp_position(i) for i in own.feature_points}, {})
+                self._start(own, None, {}, {i: own.fp_position(i) for i in own.feature_points}, {},
+                            bindings=own.feature_points)
                 self.source, self.message = "head", f"The head's own {len(own.feature_points)} points."
             else:
                 self._start_detected(mesh, detect, unit, up, forward, where)
@@ -109,8 +110,9 @@ class MeshSession:
         self._surface = None
 
     # --- where the points start ---------------------------------------------------
-    def _start(self, head: Head, frame, parts, points, confidence, metadata=None):
+    def _start(self, head: Head, frame, parts, points, confidence, metadata=None, bindings=None):
         self.head = head
+        self.bindings = dict(bindings or {})
         self.frame = frame
         self.parts = parts
         self.points = {i: np.asarray(points[i], dtype=np.float64) for i in FP_IDS if i in points}
@@ -124,7 +126,7 @@ class MeshSession:
         info = fdp.metadata.get("mark3d") if isinstance(fdp.metadata.get("mark3d"), dict) else {}
         conf = info.get("confidence") or {}
         self._start(head, fdp.frame, fdp.parts, {i: head.fp_position(i) for i in head.feature_points},
-                    {i: c for i, c in conf.items() if i in head.feature_points}, fdp.metadata)
+                    {i: c for i, c in conf.items() if i in head.feature_points}, fdp.metadata, head.feature_points)
         head.feature_points = {}
 
     def _start_detected(self, mesh, detect, unit, up, forward, where: str):
@@ -146,8 +148,9 @@ class MeshSession:
             else:
                 head = result.head
                 pts = head.fp_positions()
-                head.feature_points = {}
-                self._start(head, result.fdp.frame, result.fdp.parts, pts, result.confidence, result.fdp.metadata)
+                bindings, head.feature_points = head.feature_points, {}
+                self._start(head, result.fdp.frame, result.fdp.parts, pts, result.confidence, result.fdp.metadata,
+                            bindings)
                 self.notes = result.notes
                 self.source, self.message = "landmarks", "Points placed by automatic detection (fmc mark); check them."
                 return
@@ -269,8 +272,12 @@ class MeshSession:
         from recon.mark3d import _inside_binding
 
         surface = self.surface()
-        ids = [i for i in points if i not in INSIDE]
-        bindings, placed = {}, {}
+        # Points the page did not move keep their bindings (a snap could pick a surface
+        # beside theirs, such as an eyeball's inner shell).
+        bindings = {i: self.bindings[i] for i, p in points.items()
+                    if i in self.bindings and i in self.points and np.allclose(p, self.points[i], rtol=0, atol=1e-9)}
+        ids = [i for i in points if i not in INSIDE and i not in bindings]
+        placed = {}
         if ids:
             tri, snapped = surface.closest(np.array([points[i] for i in ids]))
             for k, i in enumerate(ids):
@@ -285,7 +292,7 @@ class MeshSession:
                 w = h.weights[keep] / h.weights[keep].sum()
                 bindings[i] = FeaturePointBinding(h.part, tuple(int(x) for x in corners), tuple(float(x) for x in w))
         for i in points:
-            if i in INSIDE:
+            if i in INSIDE and i not in bindings:
                 part = self.head.parts.get("skin") or next(iter(self.head.parts.values()))
                 bindings[i] = _inside_binding(part, points[i])
         head = Head(self.head.parts, bindings)
@@ -335,7 +342,7 @@ class MeshSession:
                                  fix="give --fdp a path in a folder you can write to") from None
             self._foreign = False
             self._disk = _hash(self.fdp_path)
-            self.points, self.confidence, self.metadata = placed, conf, meta
+            self.points, self.confidence, self.metadata, self.bindings = placed, conf, meta, bindings
             self.saved_at = self.fdp_path.stat().st_mtime
         return {"path": os.fspath(self.fdp_path), "saved_at": self.saved_at, "backup": backup,
                 "points": {VIEW: len(placed)}}
@@ -362,6 +369,7 @@ class MeshSession:
                                  where=self.fdp_path, fix="restart recon annotate to open the file as it is")
             info = fdp.metadata.get("mark3d") if isinstance(fdp.metadata.get("mark3d"), dict) else {}
             self.points = {i: head.fp_position(i) for i in FP_IDS if i in head.feature_points}
+            self.bindings = dict(head.feature_points)
             self.confidence = {i: float(c) for i, c in (info.get("confidence") or {}).items() if i in self.points}
             self.metadata = fdp.metadata
             disk = _hash(self.fdp_path)

@@ -8,12 +8,12 @@ pytest.importorskip("fast_simplification", reason="fast-simplification is not in
 from chain import clone_onto, target_head  # noqa: E402
 from mpeg4.generic_head import generic_head_path  # noqa: E402
 from recon.mark3d import mark_file  # noqa: E402
-from recon.synthetic import load_ict, perfect_detector, remeshed_identity  # noqa: E402
+from recon.synthetic import perfect_detector  # noqa: E402
 
 
 @pytest.fixture(scope="module")
-def mesh(ict_npz, tmp_path_factory):
-    return remeshed_identity(5, tmp_path_factory.mktemp("clone"), load_ict(ict_npz), fmt="obj")
+def mesh(remeshed):
+    return remeshed(7, "obj")
 
 
 @pytest.mark.slow

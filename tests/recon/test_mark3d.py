@@ -20,16 +20,25 @@ from mpeg4.head import Head, Part
 pytest.importorskip("fast_simplification", reason="fast-simplification is not installed (pip install '.[test]')")
 
 from recon.mark3d import check_mesh, estimate_frame, mark, mark_file  # noqa: E402
-from recon.synthetic import load_ict, perfect_detector, remeshed_identity  # noqa: E402
+from recon.synthetic import perfect_detector  # noqa: E402
 
 LANDMARK_GROUPS = (2, 3, 4, 8, 9)
 
 
 @pytest.fixture(scope="module")
-def meshes(ict_npz, tmp_path_factory):
-    folder = tmp_path_factory.mktemp("meshes")
-    data = load_ict(ict_npz)
-    return {fmt: remeshed_identity(seed, folder, data, fmt=fmt) for seed, fmt in ((3, "ply"), (7, "obj"))}
+def meshes(remeshed):
+    return {"ply": remeshed(3, "ply"), "obj": remeshed(7, "obj")}
+
+
+@pytest.fixture(scope="module")
+def marked(meshes, tmp_path_factory):
+    """fmc mark on a copy of each mesh: the fdp.json beside it, where load_head finds it."""
+    out = {}
+    for fmt, mf in meshes.items():
+        mesh = tmp_path_factory.mktemp(f"marked_{fmt}") / mf.path.name
+        mesh.write_bytes(mf.path.read_bytes())
+        out[fmt] = (mf, mesh, *mark_file(mesh, detect=perfect_detector(mf.points)))
+    return out
 
 
 def _errors_mm(result, mf):
@@ -40,9 +49,8 @@ def _errors_mm(result, mf):
 
 
 @pytest.mark.parametrize("fmt", ["ply", "obj"])
-def test_points_on_a_remeshed_identity(meshes, fmt, tmp_path):
-    mf = meshes[fmt]
-    out, result = mark_file(mf.path, tmp_path / "head.fdp.json", detect=perfect_detector(mf.points))
+def test_points_on_a_remeshed_identity(marked, fmt):
+    mf, mesh, out, result = marked[fmt]
     # The frame: unit and axes as the file was written.
     assert (result.frame.unit, result.frame.up, result.frame.forward) == (mf.unit, mf.up, mf.forward), result.notes
     err = _errors_mm(result, mf)
@@ -61,12 +69,8 @@ def test_points_on_a_remeshed_identity(meshes, fmt, tmp_path):
     assert np.allclose(saved.frame, result.frame.matrix)
 
 
-def test_the_file_brings_the_mesh_into_the_neutral_frame(meshes, tmp_path):
-    mf = meshes["obj"]
-    # The fdp.json beside the mesh, where load_head looks for it.
-    mesh = tmp_path / mf.path.name
-    mesh.write_bytes(mf.path.read_bytes())
-    out, result = mark_file(mesh, detect=perfect_detector(mf.points))
+def test_the_file_brings_the_mesh_into_the_neutral_frame(marked):
+    mf, mesh, out, result = marked["obj"]
     assert out == mesh.with_suffix(".fdp.json")
     head = load_head(mesh)
     assert head.metadata["mark3d"]["reviewed"] is False
@@ -80,7 +84,7 @@ def test_the_file_brings_the_mesh_into_the_neutral_frame(meshes, tmp_path):
     # Marking again keeps the first file as a backup.
     first = out.read_bytes()
     mark_file(mesh, detect=perfect_detector(mf.points), passes=1)
-    assert (tmp_path / (out.name + ".bak")).read_bytes() == first
+    assert out.with_name(out.name + ".bak").read_bytes() == first
     assert json.loads(out.read_text())["metadata"]["mark3d"]["detector"] == "perfect 2D detector"
 
 
