@@ -69,6 +69,7 @@ _HEAD_SIZE = 0.3  # metres: a head with some neck, for choosing the unit
 _NOSE_CAP = 0.015  # metres: depth of the cap in which the nose ends
 _SLICE = 0.08  # metres beyond the nose: the skull above, the neck (or nothing) below
 _NOT_A_NOSE = 0.8  # a narrowest end at least this share of the next one is no nose
+_SKIN, _WHITE, _PINK = (0.86, 0.68, 0.56), (0.92, 0.92, 0.9), (0.75, 0.4, 0.42)
 _MIRRORED = {i: fp.mirror for i, fp in FEATURE_POINTS.items() if fp.mirror}
 
 
@@ -462,6 +463,9 @@ class Views:
 def render_views(head: Head, folder, size: int = 1024, frame: np.ndarray | None = None) -> Views:
     """Front and left-side renders of a head in the neutral frame, written as PNGs to ``folder``.
 
+    Orthographic, lit from above the viewer's left shoulder; untextured parts in the
+    default grey are drawn in a skin tone (eyes and teeth white).
+
     Parameters
     ----------
     head : Head
@@ -480,6 +484,12 @@ def render_views(head: Head, folder, size: int = 1024, frame: np.ndarray | None 
 
     folder = Path(folder)
     meshes = head_meshes(head)
+    # An untextured mesh in the renderer's default grey is drawn in a skin tone (eyes and
+    # teeth white, the tongue pink): photo detectors look for skin.
+    for name, m in zip(head.parts, meshes):
+        if m.texture is None and np.allclose(m.colour, 0.8):
+            m.colour = (_WHITE if name.startswith(("eye", "teeth")) else _PINK if name.startswith("tongue")
+                        else _SKIN)
     allv = np.concatenate([p.vertices for p in head.parts.values()])
     out = Views({}, {}, {}, {}, np.eye(4) if frame is None else np.asarray(frame, dtype=np.float64))
     w = int(round(size * 0.8))
@@ -607,6 +617,31 @@ class _Surface:
                 tri[k], loc[k] = c_tri[close[0]], c_pt[close[0]]
         return tri, loc
 
+    def on_midline(self, points: np.ndarray):
+        """Nearest point of the mesh's cut by the plane x = 0 (the profile curve) to each of
+        (K, 3) points on that plane: (K,) triangles, (K, 3) points; the closest surface
+        point where nothing crosses the plane."""
+        import trimesh
+
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        try:
+            seg, faces = trimesh.intersections.mesh_plane(self.mesh, [1.0, 0.0, 0.0], [0.0, 0.0, 0.0],
+                                                          return_faces=True)
+        except (ValueError, IndexError):
+            seg = np.zeros((0, 2, 3))
+        if not len(seg):
+            return self.closest(points)
+        a, b = seg[:, 0, 1:], seg[:, 1, 1:]  # (y, z) of each piece of the profile
+        ab = b - a
+        tri = np.empty(len(points), dtype=np.int64)
+        out = np.empty_like(points)
+        for k, q in enumerate(points[:, 1:]):
+            s = np.clip(np.einsum("ij,ij->i", q - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-30), 0, 1)
+            near = a + s[:, None] * ab
+            j = int(np.argmin(np.sum((near - q) ** 2, axis=1)))
+            tri[k], out[k] = faces[j], np.r_[seg[j, 0, 0] + s[j] * (seg[j, 1, 0] - seg[j, 0, 0]), near[j]]
+        return tri, out
+
     def closest(self, points: np.ndarray, parts: list[str] | None = None):
         """Closest surface point (of the given parts) to each point: (K,) triangles, (K, 3) points."""
         import trimesh
@@ -619,6 +654,17 @@ class _Surface:
         sub = trimesh.Trimesh(self.vertices, self.triangles[keep], process=False, validate=False)
         p, _, tri = trimesh.proximity.closest_point(sub, points)
         return keep[np.asarray(tri, dtype=np.int64)], p
+
+    def piece_of(self, h: Hit) -> np.ndarray:
+        """Vertex ids (into all parts) of the connected piece a hit lies on."""
+        if not hasattr(self, "_labels"):
+            self._labels = _pieces(type("P", (), {"n_vertices": len(self.vertices), "triangles": self.triangles})())
+        return np.flatnonzero(self._labels == self._labels[self.triangles[self.index(h)][0]])
+
+    def index(self, h: Hit) -> int:
+        """The hit's triangle among all parts'."""
+        k = self.names.index(h.part)
+        return int(np.flatnonzero((self.part_of == k) & (self.local == h.triangle))[0])
 
     def hit(self, tri: int, point: np.ndarray, confidence: float, how: str) -> Hit:
         import trimesh
@@ -644,8 +690,8 @@ def lift(head: Head, views: Views, found: FdpFile, surface: _Surface | None = No
     """3D feature points on the surface from points found in the two renders.
 
     The rule per point (the catalogue's visibility): a profile point on the midline (side
-    view ``P``) is where the side ray meets the mirror plane x = 0, snapped to the nearest
-    surface; a point clear in the front view is the front ray's first hit, its confidence
+    view ``P``) is where the side ray meets the mirror plane x = 0, moved to the nearest
+    point of the profile curve (the mesh cut by that plane); a point clear in the front view is the front ray's first hit, its confidence
     lowered where the side view puts it elsewhere; a point only the side view shows clearly
     is the side ray's first hit; its right partner (the side view shows the left) is the
     mirror image, snapped.
@@ -686,7 +732,7 @@ def lift(head: Head, views: Views, found: FdpFile, surface: _Surface | None = No
         # The side rays run along -x: they meet x = 0 at o + o_x * d / (-d_x)...
         t = -o[:, 0] / d[:, 0]
         on_plane = o + t[:, None] * d
-        tri, snapped = surface.closest(on_plane)
+        tri, snapped = surface.on_midline(on_plane)
         for k, i in enumerate(profile):
             gap = float(np.linalg.norm(snapped[k] - on_plane[k]))
             out[i] = surface.hit(tri[k], snapped[k], conf("side", i) * np.exp(-(gap / 0.003) ** 2), "profile")
@@ -707,6 +753,18 @@ def lift(head: Head, views: Views, found: FdpFile, surface: _Surface | None = No
     for i, (tri, p, o, d) in cast("side", side_ids).items():
         if tri >= 0:
             out[i] = surface.hit(tri, p, conf("side", i), "side ray")
+    # A pupil on a separate eyeball: the front of the cornea (an untextured eye shows no
+    # pupil to a detector; a neutral eye looks straight ahead).
+    for i in ("3.5", "3.6"):
+        h = out.get(i)
+        if h is None:
+            continue
+        eye = surface.piece_of(h)
+        front = surface.vertices[eye]
+        apex = front[np.argmax(front[:, 2])]
+        if len(eye) < 0.5 * len(surface.vertices) and np.linalg.norm(apex - h.point) < 0.008:
+            tri, snapped = surface.closest(apex[None], [h.part])
+            out[i] = surface.hit(tri[0], snapped[0], h.confidence, "eye front")
     # Right partners of points only the (left) side view shows.
     partners = [(FEATURE_POINTS[i].mirror, i) for i in list(out) if FEATURE_POINTS[i].side == "L"
                 and FEATURE_POINTS[i].mirror not in out and out[i].how == "side ray"]
