@@ -1,5 +1,7 @@
 """fmc clone onto a head mesh without feature points: marked first, with a warning."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -9,6 +11,8 @@ from chain import clone_onto, target_head  # noqa: E402
 from mpeg4.generic_head import generic_head_path  # noqa: E402
 from recon.mark3d import mark_file  # noqa: E402
 from recon.synthetic import perfect_detector  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
@@ -36,3 +40,32 @@ def test_marked_but_unreviewed_points_are_said_so(mesh, tmp_path):
     head, warnings = target_head(path, detect=lambda v: pytest.fail("the saved points are used"))
     assert len(warnings) == 1 and "not reviewed" in warnings[0] and "recon annotate" in warnings[0]
     assert "2.1" in head.feature_points
+
+
+def test_fmc_itself_imports_no_recon():
+    import subprocess
+    import sys
+
+    code = ("import sys, pkgutil, importlib, fmc\n"
+            "for m in pkgutil.walk_packages(fmc.__path__, 'fmc.'):\n"
+            "    if not m.name.endswith('__main__'): importlib.import_module(m.name)\n"
+            "bad = sorted(m for m in sys.modules if m == 'recon' or m.startswith('recon.') or m.startswith('chain'))\n"
+            "assert not bad, bad\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+
+
+def test_clone_onto_an_unmarked_mesh_without_a_detector_is_one_line(mesh, tmp_path):
+    import importlib.util
+    import os
+    import subprocess
+    import sys
+
+    if importlib.util.find_spec("recon.landmarks") is not None:
+        pytest.skip("recon.landmarks is installed: the target would be marked")
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    out = subprocess.run([sys.executable, "-m", "chain", "clone", "--source", str(generic_head_path()), "--target",
+                          str(mesh.path), "-o", str(tmp_path / "out.glb")], capture_output=True, text=True, env=env,
+                         cwd=tmp_path)
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert "no 2D landmark detector" in out.stderr and "recon annotate" in out.stderr

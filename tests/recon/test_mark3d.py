@@ -169,6 +169,8 @@ def test_cli_errors(meshes, tmp_path):
     from chain.cli import app
 
     path = _mesh_file(tmp_path, trimesh.creation.box((0.2, 0.2, 0.2)).subdivide().subdivide(), "box.obj")
+    help_text = CliRunner().invoke(app, ["--help"]).output
+    assert all(c in help_text for c in ("mark", "clone", "author", "info"))
     out = CliRunner().invoke(app, ["mark", str(path), "--up", "+q"])
     assert isinstance(out.exception, InputError) and "unknown axis '+q' for --up" in str(out.exception)
     if importlib.util.find_spec("recon.landmarks") is None:
