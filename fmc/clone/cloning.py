@@ -234,7 +234,7 @@ def align_target(source: Head, target: Head, tri, source_space: np.ndarray, targ
         Angle and height, carried by the feature-point warp.
     depth : (N,) float64
         Radius in the source's terms: the target's, times the ratio of the two heads'
-        radii interpolated from the triangulation's vertices.
+        radii interpolated (as its logarithm) from the triangulation's vertices.
     warnings : list of str
         Triangles turned over on either head.
     """
@@ -245,12 +245,14 @@ def align_target(source: Head, target: Head, tri, source_space: np.ndarray, targ
         if folded:
             notes.append(f"on the {who} the feature-point triangles {'; '.join(' '.join(f) for f in folded[:4])} "
                          "are turned over: check those points' places")
+    # The radii's ratio interpolated as a logarithm: the map back (source onto target)
+    # then scales by exactly the inverse.
     fp_rows = ~tri.frame
-    ratio = np.full(len(tri.names), np.nan)
-    ratio[fp_rows] = s_pos[fp_rows, 2] / t_pos[fp_rows, 2]
-    ratio[tri.frame] = np.median(ratio[fp_rows])
-    aligned, depth_ratio = warp(target_space[:, :2], tri, t_pos, s_pos, values=ratio)
-    return aligned, target_space[:, 2] * depth_ratio[:, 0], notes
+    log_ratio = np.zeros(len(tri.names))
+    log_ratio[fp_rows] = np.log(s_pos[fp_rows, 2] / t_pos[fp_rows, 2])
+    log_ratio[tri.frame] = np.median(log_ratio[fp_rows])
+    aligned, log_rho = warp(target_space[:, :2], tri, t_pos, s_pos, values=log_ratio)
+    return aligned, target_space[:, 2] * np.exp(log_rho[:, 0]), notes
 
 
 def _fp_array(head: Head, ids: Iterable[str]) -> np.ndarray:
