@@ -25,7 +25,7 @@ from mpeg4.head import Head, SparseDisplacement
 from .align import folded_triangles, triangulation_for, vertex_positions, warp
 from .interpolate import interpolation_matrix
 from .parts import PartRef, find_parts, part_correspondence, transfer_part_motion
-from .regions import LIP_FPS, face_scale, lip_classes, normalisation, region_scales
+from .regions import LIP_FPS, face_scale, lip_classes, lip_vertex_classes, normalisation, region_scales
 from .space import SPACE_FPS, alignment_space
 
 __all__ = ["REQUIRED_FPS", "ANTIALIAS_SUPPORT", "check_head", "Correspondence", "correspond", "clone_targets", "clone"]
@@ -186,8 +186,10 @@ def correspond(source: Head, target: Head, antialias: float | None = None, trian
     keep = (ang.max(axis=1) - ang.min(axis=1) < _MAX_TRIANGLE_ANGLE) & ~s_skin_parts[tris].any(axis=1)
     have_lips = all(i in source.feature_points and i in target.feature_points for i in LIP_FPS)
     if have_lips:
-        s_lip = lip_classes(s_space, dict(zip(LIP_FPS, alignment_space(source, _fp_array(source, LIP_FPS)))))
-        t_lip = lip_classes(t_space, dict(zip(LIP_FPS, alignment_space(target, _fp_array(target, LIP_FPS)))))
+        s_lip = lip_vertex_classes(source, lip_classes(s_space, dict(zip(LIP_FPS, alignment_space(
+            source, _fp_array(source, LIP_FPS))))))
+        t_lip = lip_vertex_classes(target, lip_classes(t_space, dict(zip(LIP_FPS, alignment_space(
+            target, _fp_array(target, LIP_FPS))))))
     else:
         notes.append("the lips are not told apart: " + ", ".join(i for i in LIP_FPS if i not in source.feature_points
                                                                     or i not in target.feature_points)

@@ -94,6 +94,14 @@ class TriangleIndex:
                 tris.append(self._tris[self._start[cell[point]] + k])
         return np.concatenate(pts), np.concatenate(tris)
 
+    def border_distance(self, points: np.ndarray, reach: int, x_scale: np.ndarray, y_scale: float) -> np.ndarray:
+        """(N,) distance from each point to the border of the block of cells up to
+        ``reach`` from its own, with the axes scaled by ``x_scale`` (N,) and ``y_scale``."""
+        p = (np.asarray(points)[:, :2] - self.lo) / self.cell
+        g = np.floor(p)
+        near = np.minimum(p - (g - reach), (g + reach + 1) - p) * self.cell
+        return np.minimum(near[:, 0] * x_scale, near[:, 1] * y_scale)
+
     def barycentric(self, points: np.ndarray, tris: np.ndarray) -> np.ndarray:
         """(N, 3) barycentric weights of ``points`` (N, 2) in triangles ``tris`` (N,)."""
         w12 = np.einsum("nij,nj->ni", self._inv[tris], np.asarray(points)[:, :2] - self._origin[tris])
@@ -130,8 +138,8 @@ def disc_samples(support: float, n: int = 16) -> np.ndarray:
 
 def _first_per_group(group: np.ndarray, score: np.ndarray) -> np.ndarray:
     """Indices of the lowest score within each group (groups need not be sorted)."""
-    order = np.lexsort((score, group))
-    first = np.r_[True, group[order][1:] != group[order][:-1]]
+    order = np.argsort(score, kind="stable")
+    _, first = np.unique(group[order], return_index=True)
     return order[first]
 
 
@@ -221,14 +229,15 @@ def interpolation_matrix(points: np.ndarray, depth: np.ndarray, src_space: np.nd
         best_w = np.zeros((len(q), 3))
         best_c = np.full(len(q), np.inf)
         todo = np.arange(len(q))
-        # Own cell first; the neighbouring cells for points whose best is not inside and
-        # close in depth; the nearest triangles by centroid for those with none near.
+        # Own cell first, then the cells around it, then the nearest triangles by
+        # centroid. A triangle not yet tried lies wholly outside the cells searched, so
+        # it is at least as far as their border: a point whose best is nearer is done.
         for reach in (0, 1, None):
             if not len(todo) or tree is None:
                 break
             if reach is None:
                 k = min(k_outside, len(valid))
-                _, near = cKDTree.query(tree, q[todo], k=k)
+                _, near = tree.query(q[todo], k=k)
                 point = np.repeat(todo, k)
                 tris = valid[near.reshape(len(todo), k)].ravel()
             else:
@@ -239,9 +248,8 @@ def interpolation_matrix(points: np.ndarray, depth: np.ndarray, src_space: np.nd
             better = cost[pick] < best_c[point[pick]]
             p = point[pick][better]
             best_t[p], best_w[p], best_c[p] = tris[pick][better], w[pick][better], cost[pick][better]
-            # The cell spans at least a triangle: a point whose best is within a tenth of
-            # a millimetre of it need look no further.
-            todo = todo[best_c[todo] > 1e-4]
+            if reach is not None:
+                todo = todo[best_c[todo] > index.border_distance(q[todo], reach, qd[todo], height)]
         tri_of[start:start + chunk] = best_t
         bary[start:start + chunk] = best_w
     hit = tri_of >= 0

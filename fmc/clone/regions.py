@@ -24,7 +24,7 @@ from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.head import Head
 
 __all__ = ["MOUTH_REGION_FPS", "region_scales", "normalisation", "mouth_scale", "face_scale", "LIP_FPS",
-           "lip_classes"]
+           "UPPER_LIP_FPS", "LOWER_LIP_FPS", "CORNER_FPS", "lip_classes", "lip_vertex_classes"]
 
 #: Skin feature points of the mouth region (lips, chin and jaw, the soft cheeks, the
 #: bottom of the nose); all other skin points belong to the upper face.
@@ -81,6 +81,26 @@ LIP_FPS = ("8.3", "8.5", "8.10", "8.1", "8.9", "8.6", "8.4", "8.8", "8.2", "8.7"
 # How far beyond the outer contour (as a fraction of its size about its centre) a point
 # still belongs to a lip: the vermilion border and the lips' inner surfaces.
 _LIP_MARGIN = 0.25
+
+
+#: Lip feature points by the lip they lie on: their vertices are on that lip whatever
+#: the line says (the inner points of the two lips touch, and may cross, in the neutral
+#: face); the corners belong to both.
+UPPER_LIP_FPS = ("2.2", "2.6", "2.7", "8.1", "8.5", "8.6", "8.9", "8.10")
+LOWER_LIP_FPS = ("2.3", "2.8", "2.9", "8.2", "8.7", "8.8")
+CORNER_FPS = ("2.4", "2.5", "8.3", "8.4")
+
+
+def lip_vertex_classes(head: Head, classes: np.ndarray) -> np.ndarray:
+    """``classes`` (N,) of the skin's vertices with the lip feature points' own vertices
+    set to their lip (+1 upper, −1 lower, 0 the corners)."""
+    out = np.array(classes, dtype=np.float64, copy=True)
+    for ids, side in ((UPPER_LIP_FPS, 1.0), (LOWER_LIP_FPS, -1.0), (CORNER_FPS, 0.0)):
+        for i in ids:
+            b = head.feature_points.get(i)
+            if b is not None and b.part == "skin":
+                out[list(b.vertices)] = side
+    return out
 
 
 def lip_classes(space: np.ndarray, lip_fps: dict[str, np.ndarray]) -> np.ndarray:
