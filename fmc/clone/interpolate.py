@@ -42,7 +42,7 @@ class TriangleIndex:
     triangles : (T, 3) int
         Degenerate (zero-area) triangles are never returned.
     cell : float, optional
-        Grid cell size; by default twice the median extent of a triangle.
+        Grid cell size; by default half the median extent of a triangle.
     """
 
     def __init__(self, vertices: np.ndarray, triangles: np.ndarray, cell: float | None = None):
@@ -60,7 +60,7 @@ class TriangleIndex:
         ids = np.flatnonzero(self.valid)
         if cell is None:
             ext = (hi - lo)[ids].max(axis=1) if len(ids) else np.ones(1)
-            cell = 2.0 * float(np.median(ext)) if len(ext) else 1.0
+            cell = 0.5 * float(np.median(ext)) if len(ext) else 1.0
         self.cell = max(cell, 1e-12)
         self.lo = lo[ids].min(axis=0) if len(ids) else np.zeros(2)
         i0 = np.floor((lo[ids] - self.lo) / self.cell).astype(np.int64)
@@ -166,7 +166,7 @@ def _closest(q: np.ndarray, qd: np.ndarray, index: TriangleIndex, radius: np.nda
 
 def interpolation_matrix(points: np.ndarray, depth: np.ndarray, src_space: np.ndarray, src_triangles: np.ndarray,
                          n_source: int, height: float, forbidden: np.ndarray | None = None, support: float = 0.0,
-                         n_samples: int = 16, k_outside: int = 16, chunk: int = 40000) -> sparse.csr_matrix:
+                         n_samples: int = 16, k_outside: int = 8, chunk: int = 40000) -> sparse.csr_matrix:
     """Sparse (N, n_source) weights: row i interpolates source vertex values at point i.
 
     Each point takes the source triangle nearest to it in a metric version of the
@@ -199,7 +199,8 @@ def interpolation_matrix(points: np.ndarray, depth: np.ndarray, src_space: np.nd
     n_samples : int
         Samples in the disc.
     k_outside : int
-        Triangles (nearest by centroid) tried for a point with no triangle near it.
+        Source vertices (nearest in the metric) whose triangles a point tries when its own
+        cell does not settle it.
     chunk : int
         Points per block (bounds the memory of the candidate pairs).
     """
@@ -219,7 +220,14 @@ def interpolation_matrix(points: np.ndarray, depth: np.ndarray, src_space: np.nd
     index = TriangleIndex(src_space[:, :2], src_triangles)
     radius = src_space[:, 2]
     valid = np.flatnonzero(index.valid)
-    tree = cKDTree(src_space[index.triangles[valid], :2].mean(axis=1)) if len(valid) else None
+    # Beyond the own cell: the triangles round the source vertices nearest in the same
+    # metric (angle times radius, height times the height unit, radius).
+    used = np.unique(index.triangles[valid])
+    tree = cKDTree(np.c_[src_space[used, 0] * radius[used], src_space[used, 1] * height, radius[used]]) \
+        if len(valid) else None
+    corner = index.triangles[valid].ravel()
+    by_vertex = np.argsort(corner, kind="stable")
+    first = np.searchsorted(corner[by_vertex], np.arange(len(src_space) + 1))
     tri_of = np.full(len(q_all), -1, dtype=np.int64)
     bary = np.zeros((len(q_all), 3))
     for start in range(0, len(q_all), chunk):
@@ -229,27 +237,30 @@ def interpolation_matrix(points: np.ndarray, depth: np.ndarray, src_space: np.nd
         best_w = np.zeros((len(q), 3))
         best_c = np.full(len(q), np.inf)
         todo = np.arange(len(q))
-        # Own cell first, then the cells around it, then the nearest triangles by
-        # centroid. A triangle not yet tried lies wholly outside the cells searched, so
-        # it is at least as far as their border: a point whose best is nearer is done.
-        for reach in (0, 1, None):
+        # The own cell first: a triangle not tried there lies wholly outside the cell, so
+        # a point whose best is nearer than the cell's border is done. The others try the
+        # triangles round their nearest source vertices.
+        for stage in ("cell", "vertices"):
             if not len(todo) or tree is None:
                 break
-            if reach is None:
-                k = min(k_outside, len(valid))
-                _, near = tree.query(q[todo], k=k)
-                point = np.repeat(todo, k)
-                tris = valid[near.reshape(len(todo), k)].ravel()
+            if stage == "vertices":
+                k = min(k_outside, len(used))
+                _, near = tree.query(np.c_[q[todo, 0] * qd[todo], q[todo, 1] * height, qd[todo]], k=k)
+                verts = used[near.reshape(len(todo), k)]
+                counts = first[verts + 1] - first[verts]
+                point = np.repeat(np.repeat(todo, k), counts.ravel())
+                offs = np.arange(counts.sum()) - np.repeat(np.cumsum(counts.ravel()) - counts.ravel(), counts.ravel())
+                tris = valid[by_vertex[np.repeat(first[verts].ravel(), counts.ravel()) + offs] // 3]
             else:
-                point, tris = index.candidates(q[todo], reach)
+                point, tris = index.candidates(q[todo], 0)
                 point = todo[point]
             w, cost = _closest(q, qd, index, radius, height, point, tris)
             pick = _first_per_group(point, cost)
             better = cost[pick] < best_c[point[pick]]
             p = point[pick][better]
             best_t[p], best_w[p], best_c[p] = tris[pick][better], w[pick][better], cost[pick][better]
-            if reach is not None:
-                todo = todo[best_c[todo] > index.border_distance(q[todo], reach, qd[todo], height)]
+            if stage == "cell":
+                todo = todo[best_c[todo] > index.border_distance(q[todo], 0, qd[todo], height)]
         tri_of[start:start + chunk] = best_t
         bary[start:start + chunk] = best_w
     hit = tri_of >= 0

@@ -6,8 +6,8 @@ as one mesh); failing both, a part of the conventional name. Each part's motion 
 morph target is split into a rigid motion about the part's centre (the eyeball's
 rotation centre; the centroid of teeth, tongue and gums), fitted by least squares
 (Kabsch), and what is left. The target's part turns by the same rotation about its own
-centre, moves by the translation in FAPU terms, and takes the rest through a
-correspondence of the two parts in normalised coordinates.
+centre, moves by the translation in FAPU terms, and takes the rest (in FAPU terms)
+through a correspondence of the two parts' vertices.
 
 References
 ----------
@@ -181,9 +181,14 @@ def rigid_motion(points: np.ndarray, moved: np.ndarray, centre: np.ndarray) -> t
 
 def part_correspondence(source: Head, s: PartRef, target: Head, t: PartRef, k: int = 4) -> sparse.csr_matrix:
     """(k_t, k_s) weights taking values on the source part's vertices to the target's:
-    inverse-distance over the ``k`` nearest in normalised coordinates about each centre."""
-    ps = (s.points(source) - s.centre) / s.scale
-    pt = (t.points(target) - t.centre) / t.scale
+    inverse-distance over the ``k`` nearest, each part's vertices taken about their
+    centroid and divided by their spread along each axis (so two eyeballs, or two
+    tongues, of different sizes and places meet point for point)."""
+
+    def normalised(p):
+        return (p - p.mean(axis=0)) / np.maximum(p.std(axis=0), 1e-12)
+
+    ps, pt = normalised(s.points(source)), normalised(t.points(target))
     k = min(k, len(ps))
     dist, near = cKDTree(ps).query(pt, k=k)
     dist, near = dist.reshape(len(pt), k), near.reshape(len(pt), k)
