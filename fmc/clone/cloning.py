@@ -97,6 +97,10 @@ class Correspondence:
     support : float
         Anti-aliasing radius used (0: none).
     warnings : list of str
+        What the heads lack and what was done about it; :meth:`transfer` adds the
+        source parts it had to leave out.
+    unmatched : set of str
+        Source parts the target has nothing for.
     """
 
     source: Head
@@ -107,13 +111,20 @@ class Correspondence:
     parts: list[tuple[PartRef, PartRef, sparse.csr_matrix]] = field(default_factory=list)
     support: float = 0.0
     warnings: list[str] = field(default_factory=list)
+    unmatched: set[str] = field(default_factory=set)
 
     def transfer(self, targets: Mapping[str, Mapping[str, SparseDisplacement]], tol: float = 1e-7
                  ) -> dict[str, dict[str, SparseDisplacement]]:
         """The morph targets ``targets`` of the source (name → part → displacement, metres)
         on the target; vertices moving less than ``tol`` metres are left out."""
         names = list(targets)
-        n_s, n_t = self.source.skin.n_vertices, self.target.skin.n_vertices
+        n_s = self.source.skin.n_vertices
+        left_out = sorted({p for t in targets.values() for p, d in t.items()
+                           if p in self.unmatched and np.abs(d.vectors).max(initial=0) > 0})
+        if left_out:
+            note = f"the target has no {', '.join(left_out)}: their motion is left out"
+            if note not in self.warnings:
+                self.warnings.append(note)
         result: dict[str, dict[str, np.ndarray]] = {n: {} for n in names}
         for start in range(0, len(names), 32):  # a block at a time keeps the dense arrays small
             block = names[start:start + 32]
@@ -220,10 +231,8 @@ def correspond(source: Head, target: Head, antialias: float | None = None, trian
         if t is None:
             continue
         pairs.append((s, t, part_correspondence(source, s, target, t)))
-    missing = sorted(set(s_parts) - set(t_parts))
-    if missing:
-        notes.append(f"the target has no {', '.join(missing)}: their motion is left out")
-    return Correspondence(source, target, skin, s_scale, t_scale, pairs, float(antialias), notes)
+    unmatched = {s_parts[k].part for k in set(s_parts) - set(t_parts) if s_parts[k].part != "skin"}
+    return Correspondence(source, target, skin, s_scale, t_scale, pairs, float(antialias), notes, unmatched)
 
 
 def align_target(source: Head, target: Head, tri, source_space: np.ndarray, target_space: np.ndarray
@@ -297,17 +306,27 @@ def _unit_correction(source: Head, target: Head, fap: int) -> np.ndarray:
     A table's displacements are per FAP unit (reference section 5): the FP must move by
     the same multiple of the target's unit as of the source's. The region normalisation
     scales by the region's FAPU instead (e.g. the lids' IRISD0 against the region's
-    ENS0); this factor is the ratio of the two at the FP. Angle units (AU) need none.
+    ENS0); this factor is the ratio of the two at the FP. Angle units (AU) need none,
+    but for the tongue roll, a mesh table: its lift is the angle times the tongue's half
+    width, so that ratio replaces the region's in y.
     """
     entry = FAPS[fap]
-    if fap < 3 or entry.unit in (None, "", "AU"):
+    if fap < 3 or not entry.unit:
         return np.ones(3)
     fp = entry.feature_points[0]
     if fp not in source.feature_points or fp not in target.feature_points:
         return np.ones(3)
-    units = source.fapu.unit(entry.unit), target.fapu.unit(entry.unit)
     # The scale the cloning used at the FP (parts inside the head take their region's).
     scales = [region_scales(h, h.fp_position(fp)[None])[0] for h in (source, target)]
+    if entry.kind == "roll":
+        # An angle: the sides lift by the angle times the tongue's half width (6.3 to 6.2).
+        if "6.2" not in source.feature_points or "6.2" not in target.feature_points:
+            return np.ones(3)
+        half = [abs(h.fp_position(fp)[0] - h.fp_position("6.2")[0]) for h in (source, target)]
+        return np.r_[1.0, (half[1] / half[0]) / (scales[1][1] / scales[0][1]), 1.0]
+    if entry.unit == "AU":
+        return np.ones(3)
+    units = source.fapu.unit(entry.unit), target.fapu.unit(entry.unit)
     return (units[1] / units[0]) / (scales[1] / scales[0])
 
 
@@ -347,14 +366,15 @@ def clone(source: Head, target: Head, antialias: float | None = None, triangulat
                          + (" (its morph targets move nothing)" if targets else ""),
                          fix="give a source with motion (fmc author, or a GLB with morph targets)")
     corr = correspond(source, target, antialias=antialias, triangulation=triangulation)
-    warnings = list(corr.warnings)
     cloned = corr.transfer(targets) if targets else {}
+    warnings = list(corr.warnings)
     out = target.copy()
     out.morph_targets = {n: cloned[n] for n in source.morph_targets}
     if source.fat is not None and len(source.fat):
         s_parts = {p.part: p for p, _, _ in corr.parts}
         t_of = {p.part: t for p, t, _ in corr.parts}
-        centre_71 = _head_centre(source, target, warnings)
+        turns_head = any(t.part is None for table in source.fat.values() for t in table.transforms)
+        centre_71 = _head_centre(source, target, warnings) if turns_head else None
         transforms = FAT()
         for key, table in source.fat.items():
             moved = []
@@ -370,9 +390,11 @@ def clone(source: Head, target: Head, antialias: float | None = None, triangulat
                 dst = t_of[t.part]
                 moved.append(FaceDefTransform(dst.part, t.kind, dst.centre, t.axis, t.amount))
             transforms.add(FaceDefTable(table.fap, table.high_level, [], moved))
-        fat_targets = {}
+        fat_targets, factors = {}, {}
         for s in specs:
-            k = _unit_correction(source, target, s.fap) if s.high_level == 0 else np.ones(3)
+            if s.fap not in factors:
+                factors[s.fap] = _unit_correction(source, target, s.fap) if s.fap > 2 else np.ones(3)
+            k = factors[s.fap]
             fat_targets[s.target] = {p: SparseDisplacement(d.indices, d.vectors * k) for p, d in cloned[s.target].items()}
         out.fat = fat_from_morph_targets(fat_targets, specs, target.fapu, transforms)
         for key, table in transforms.items():

@@ -183,7 +183,8 @@ def part_correspondence(source: Head, s: PartRef, target: Head, t: PartRef, k: i
     """(k_t, k_s) weights taking values on the source part's vertices to the target's:
     inverse-distance over the ``k`` nearest, each part's vertices taken about their
     centroid and divided by their spread along each axis (so two eyeballs, or two
-    tongues, of different sizes and places meet point for point)."""
+    tongues, of different sizes and places meet point for point); a target vertex that is
+    a feature point of both parts takes the source point's place exactly."""
 
     def normalised(p):
         return (p - p.mean(axis=0)) / np.maximum(p.std(axis=0), 1e-12)
@@ -198,7 +199,24 @@ def part_correspondence(source: Head, s: PartRef, target: Head, t: PartRef, k: i
     w[exact, 0] = 1.0
     w /= w.sum(axis=1, keepdims=True)
     rows = np.repeat(np.arange(len(pt)), k)
-    return sparse.csr_matrix((w.ravel(), (rows, near.ravel())), shape=(len(pt), len(ps)))
+    out = sparse.lil_matrix(sparse.csr_matrix((w.ravel(), (rows, near.ravel())), shape=(len(pt), len(ps))))
+    # Feature points on both parts are known to correspond: their vertices take the
+    # source point's motion exactly.
+    s_at = {int(v): k for k, v in enumerate(s.vertices)}
+    t_at = {int(v): k for k, v in enumerate(t.vertices)}
+    for fp, b in target.feature_points.items():
+        a = source.feature_points.get(fp)
+        if a is None or b.part != t.part or a.part != s.part or len(b.vertices) != 1:
+            continue  # (a point between target vertices would spread one value over them)
+        if not all(v in t_at for v in b.vertices) or not all(v in s_at for v in a.vertices):
+            continue
+        cols = {}
+        for u, wt in zip(a.vertices, a.weights):
+            cols[s_at[u]] = cols.get(s_at[u], 0.0) + wt
+        v = t_at[b.vertices[0]]
+        out.rows[v] = sorted(cols)
+        out.data[v] = [cols[c] for c in sorted(cols)]
+    return out.tocsr()
 
 
 def transfer_part_motion(source_points: np.ndarray, displacement: np.ndarray, s: PartRef, target_points: np.ndarray,
