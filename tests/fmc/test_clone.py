@@ -112,20 +112,25 @@ def test_shipped_triangulation_loads_covers_and_mirrors():
     assert faces == mirrored
 
 
-@pytest.mark.slow
-def test_shipped_triangulation_keeps_its_orientation_on_ict_identities(bench, ict):
+def test_shipped_triangulation_keeps_its_orientation_on_ict_identities(ict):
+    from fmc.clone import folded_triangles
+
     tri = load_fp_triangulation()
     generic = load_generic_head()
+    # Only the feature points' vertices matter: move those to each identity.
+    idx = np.unique([v for b in generic.feature_points.values() if b.part == "skin" for v in b.vertices])
+    neutral = ict["vertices"][idx].astype(np.float64)
+    modes = ict["identity_deltas"][:, idx].astype(np.float64)
     folded_faces = 0
-    for seed in range(100):
-        head = bench.ict_target(generic, ict, seed)
-        from fmc.clone import folded_triangles
-
-        folded = folded_triangles(tri, vertex_positions(head, tri))
+    for seed in range(200):
+        z = np.random.default_rng(seed).standard_normal(100)
+        skin = generic.skin.vertices.copy()
+        skin[idx] = 0.01 * (neutral + np.tensordot(z, modes, 1))
+        folded = folded_triangles(tri, vertex_positions(generic.with_vertices({"skin": skin}), tri))
         # Only the mouth corners may turn over (the inner corner outside the outer one).
         assert all({"2.4", "2.5"} & set(f) for f in folded), folded
         folded_faces += bool(folded)
-    assert folded_faces <= 3
+    assert folded_faces <= 4
 
 
 def test_the_two_directions_are_exact_inverses():
