@@ -9,17 +9,20 @@ The method, after Pandžić [1]_, one small function per step:
    targets), divided by the source's scales.
 3. Alignment space (:func:`alignment_space`): a cylindrical projection about a vertical
    axis placed so the mouth spans the same angle on both heads, angle 0 at the nose tip;
-   then the feature-point alignment (:func:`warp`): the target's points moved onto the
-   source's by a piecewise-affine map over a shipped triangulation of the feature points
-   (:func:`load_fp_triangulation`; Delaunay as an option).
-4. Interpolation (:func:`interpolation_matrix`): each target vertex takes the motion of
-   the projected source triangle that holds it, the nearest in depth where several do;
-   outside every triangle, the one with the smallest excess of negative barycentric
-   weight, clamped and renormalised.
+   then the feature-point alignment (:func:`align_target`, :func:`warp`): the target's
+   points moved onto the source's by a piecewise-affine map over a shipped triangulation
+   of the feature points (:func:`load_fp_triangulation`; Delaunay as an option), the
+   same triangles both ways so that the two directions are exact inverses; depth scaled
+   by the two heads' radii at the feature points.
+4. Interpolation (:func:`skin_weights`, :func:`interpolation_matrix`): each target vertex
+   takes the motion of the projected source triangle that holds it, the nearest in depth
+   where several do; a triangle it lies outside competes by its distance, the excess of
+   negative barycentric weight clamped and renormalised (so a vertex just off its own
+   surface takes that surface's motion, not the layer behind).
 5. Anti-aliasing: the motion averaged over a disc of samples (on by default when the
    target is sparser than the source).
-6. Lips (:func:`lip_classes`): upper-lip target vertices take no motion from the source's
-   lower lip, and the other way round.
+6. Lips (:func:`lip_sides`, :func:`lip_classes`): upper-lip target vertices take no
+   motion from the source's lower lip, and the other way round.
 7. Eyes, teeth, tongue and the other parts (:func:`find_parts`): found from their feature
    points; rotations about their centres (installed when missing), translations in FAPU
    terms; the FAT's eye and head rotations re-centred on the target.
@@ -33,7 +36,8 @@ References
 
 from .align import (FPTriangulation, delaunay_fp_triangulation, folded_triangles, load_fp_triangulation,
                     triangulation_for, vertex_positions, warp)
-from .cloning import ANTIALIAS_SUPPORT, REQUIRED_FPS, Correspondence, check_head, clone, clone_targets, correspond
+from .cloning import (ANTIALIAS_SUPPORT, REQUIRED_FPS, Correspondence, align_target, check_head, clone, clone_targets,
+                      correspond, lip_sides, skin_weights)
 from .interpolate import TriangleIndex, disc_samples, interpolation_matrix
 from .parts import PART_ROLES, PartRef, find_parts, rigid_motion, sphere_centre
 from .regions import LIP_FPS, lip_classes, normalisation, region_scales
@@ -41,6 +45,7 @@ from .space import MOUTH_SPAN, alignment_space, cylinder_axis
 
 __all__ = [
     "clone", "clone_targets", "correspond", "Correspondence", "check_head", "REQUIRED_FPS", "ANTIALIAS_SUPPORT",
+    "align_target", "lip_sides", "skin_weights",
     "normalisation", "region_scales", "lip_classes", "LIP_FPS",
     "alignment_space", "cylinder_axis", "MOUTH_SPAN",
     "FPTriangulation", "load_fp_triangulation", "delaunay_fp_triangulation", "triangulation_for", "vertex_positions",

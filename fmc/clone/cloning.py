@@ -28,7 +28,8 @@ from .parts import PartRef, find_parts, part_correspondence, transfer_part_motio
 from .regions import LIP_FPS, face_scale, lip_classes, lip_vertex_classes, normalisation, region_scales
 from .space import SPACE_FPS, alignment_space
 
-__all__ = ["REQUIRED_FPS", "ANTIALIAS_SUPPORT", "check_head", "Correspondence", "correspond", "clone_targets", "clone"]
+__all__ = ["REQUIRED_FPS", "ANTIALIAS_SUPPORT", "check_head", "Correspondence", "correspond", "align_target",
+           "lip_sides", "skin_weights", "clone_targets", "clone"]
 
 #: Feature points the method cannot do without: the FAPU and the alignment space.
 REQUIRED_FPS = tuple(sorted({p for d in FAPU_DEFINITIONS.values() for p in (d.first, d.second)} | set(SPACE_FPS),
@@ -66,10 +67,6 @@ def check_head(head: Head, name: str) -> None:
         factor = {"centimetres": "0.01", "millimetres": "0.001"}.get(unit, "the right factor")
         raise InputError(f"the {name} head's pupils are {es:.4g} units apart, not 0.03-0.15 m{guess}",
                          fix=f"give the head in metres (scale it by {factor})")
-
-
-def _skin_fps(head: Head) -> set[str]:
-    return {i for i, b in head.feature_points.items() if b.part == "skin"}
 
 
 def _median_edge(space: np.ndarray, triangles: np.ndarray) -> float:
@@ -171,68 +168,80 @@ def correspond(source: Head, target: Head, antialias: float | None = None, trian
     # 1. Normalisation.
     s_scale, t_scale = normalisation(source), normalisation(target)
     # 2. The alignment space.
-    s_v, t_v = source.skin.vertices, target.skin.vertices
-    s_space, t_space = alignment_space(source, s_v), alignment_space(target, t_v)
+    s_space, t_space = alignment_space(source, source.skin.vertices), alignment_space(target, target.skin.vertices)
     # 3. Feature-point alignment of the target onto the source.
     tri, more = triangulation_for(source, target, triangulation)
     notes += more
     aligned, depth, more = align_target(source, target, tri, s_space, t_space)
     notes += more
-    # Parts beside the skin (and pieces of the skin that are eyes or teeth).
+    # 7. Parts (found first: pieces of the skin that are eyes or teeth leave the skin's step).
     s_parts, more = find_parts(source)
     notes += [f"source: {m}" for m in more]
     t_parts, more = find_parts(target)
     notes += [f"target: {m}" for m in more]
-    s_skin_parts = np.zeros(source.skin.n_vertices, bool)
-    for p in s_parts.values():
-        if p.part == "skin":
-            s_skin_parts[p.vertices] = True
-    t_skin_parts = np.zeros(target.skin.n_vertices, bool)
-    for p in t_parts.values():
-        if p.part == "skin":
-            t_skin_parts[p.vertices] = True
-    # 4. Source triangles to interpolate in, by lip.
-    tris = source.skin.triangles
-    ang = s_space[tris, 0]
-    keep = (ang.max(axis=1) - ang.min(axis=1) < _MAX_TRIANGLE_ANGLE) & ~s_skin_parts[tris].any(axis=1)
-    have_lips = all(i in source.feature_points and i in target.feature_points for i in LIP_FPS)
-    if have_lips:
-        s_lip = lip_vertex_classes(source, lip_classes(s_space, dict(zip(LIP_FPS, alignment_space(
-            source, _fp_array(source, LIP_FPS))))))
-        t_lip = lip_vertex_classes(target, lip_classes(t_space, dict(zip(LIP_FPS, alignment_space(
-            target, _fp_array(target, LIP_FPS))))))
-    else:
-        notes.append("the lips are not told apart: " + ", ".join(i for i in LIP_FPS if i not in source.feature_points
-                                                                    or i not in target.feature_points)
-                     + " are missing")
-        s_lip, t_lip = np.zeros(len(s_v)), np.zeros(len(t_v))
-    s_height = 0.5 * (source.fp_position("4.1")[1] + source.fp_position("4.2")[1]) - source.fp_position("2.1")[1]
+    # 6. Lips.
+    s_lip, t_lip, more = lip_sides(source, target, s_space, t_space)
+    notes += more
     # 5. Anti-aliasing: on by default when the target is sparser.
     if antialias is None:
-        sparser = _median_edge(t_space, target.skin.triangles) / _median_edge(s_space, tris)
+        sparser = _median_edge(t_space, target.skin.triangles) / _median_edge(s_space, source.skin.triangles)
         antialias = ANTIALIAS_SUPPORT if sparser > _SPARSER else 0.0
-    rows, blocks = [], []
-    for who, other in ((0.0, None), (1.0, -1.0), (-1.0, 1.0)):
-        mine = np.flatnonzero((t_lip == who) & ~t_skin_parts)
-        if not len(mine):
-            continue
-        # 6. Lips: an upper-lip point takes no motion from the lower lip's vertices.
-        blocks.append(interpolation_matrix(aligned[mine], depth[mine], s_space, tris[keep], len(s_v), s_height,
-                                           forbidden=None if other is None else s_lip == other, support=antialias))
-        rows.append(mine)
-    order = np.concatenate(rows)
-    stacked = sparse.vstack(blocks).tocsr()
-    perm = sparse.csr_matrix((np.ones(len(order)), (order, np.arange(len(order)))), shape=(len(t_v), len(order)))
-    skin = (perm @ stacked).tocsr()
-    # 7. Parts: matched by role or name.
-    pairs = []
-    for key, s in s_parts.items():
-        t = t_parts.get(key)
-        if t is None:
-            continue
-        pairs.append((s, t, part_correspondence(source, s, target, t)))
+    # 4. Interpolation.
+    skin = skin_weights(source, s_space, aligned, depth, s_lip, t_lip, _in_skin(source, s_parts),
+                        _in_skin(target, t_parts), antialias)
+    pairs = [(s, t_parts[k], part_correspondence(source, s, target, t_parts[k]))
+             for k, s in s_parts.items() if k in t_parts]
     unmatched = {s_parts[k].part for k in set(s_parts) - set(t_parts) if s_parts[k].part != "skin"}
     return Correspondence(source, target, skin, s_scale, t_scale, pairs, float(antialias), notes, unmatched)
+
+
+def _in_skin(head: Head, parts: Mapping[str, PartRef]) -> np.ndarray:
+    """(N,) bool: skin vertices that belong to a part (an eyeball meshed with the skin)."""
+    out = np.zeros(head.skin.n_vertices, bool)
+    for p in parts.values():
+        if p.part == "skin":
+            out[p.vertices] = True
+    return out
+
+
+def lip_sides(source: Head, target: Head, source_space: np.ndarray, target_space: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """(N_s,) and (N_t,) lip classes of the two skins (+1 upper, −1 lower, 0 neither), each
+    by its own feature points, and a warning when they cannot be told apart."""
+    if not all(i in source.feature_points and i in target.feature_points for i in LIP_FPS):
+        missing = [i for i in LIP_FPS if i not in source.feature_points or i not in target.feature_points]
+        return (np.zeros(len(source_space)), np.zeros(len(target_space)),
+                [f"the lips are not told apart: {', '.join(missing)} are missing"])
+    sides = []
+    for head, space in ((source, source_space), (target, target_space)):
+        fps = dict(zip(LIP_FPS, alignment_space(head, np.array([head.fp_position(i) for i in LIP_FPS]))))
+        sides.append(lip_vertex_classes(head, lip_classes(space, fps)))
+    return sides[0], sides[1], []
+
+
+def skin_weights(source: Head, source_space: np.ndarray, aligned: np.ndarray, depth: np.ndarray,
+                 source_lip: np.ndarray, target_lip: np.ndarray, source_parts: np.ndarray, target_parts: np.ndarray,
+                 support: float) -> sparse.csr_matrix:
+    """(N_t, N_s) weights taking the source skin's values to the target skin's vertices.
+
+    Each lip's target vertices take nothing from the other lip's source vertices; skin
+    vertices that belong to parts (``*_parts`` masks) neither give nor take.
+    """
+    tris = source.skin.triangles
+    ang = source_space[tris, 0]
+    keep = (ang.max(axis=1) - ang.min(axis=1) < _MAX_TRIANGLE_ANGLE) & ~source_parts[tris].any(axis=1)
+    height = 0.5 * (source.fp_position("4.1")[1] + source.fp_position("4.2")[1]) - source.fp_position("2.1")[1]
+    n_t = len(aligned)
+    out = sparse.csr_matrix((n_t, len(source_space)))
+    for side, other in ((0.0, None), (1.0, -1.0), (-1.0, 1.0)):
+        mine = np.flatnonzero((target_lip == side) & ~target_parts)
+        if not len(mine):
+            continue
+        w = interpolation_matrix(aligned[mine], depth[mine], source_space, tris[keep], len(source_space), height,
+                                 forbidden=None if other is None else source_lip == other, support=support)
+        rows = sparse.csr_matrix((np.ones(len(mine)), (mine, np.arange(len(mine)))), shape=(n_t, len(mine)))
+        out = out + rows @ w
+    return out.tocsr()
 
 
 def align_target(source: Head, target: Head, tri, source_space: np.ndarray, target_space: np.ndarray
@@ -264,10 +273,6 @@ def align_target(source: Head, target: Head, tri, source_space: np.ndarray, targ
     log_ratio[tri.frame] = np.median(log_ratio[fp_rows])
     aligned, log_rho = warp(target_space[:, :2], tri, t_pos, s_pos, values=log_ratio)
     return aligned, target_space[:, 2] * np.exp(log_rho[:, 0]), notes
-
-
-def _fp_array(head: Head, ids: Iterable[str]) -> np.ndarray:
-    return np.array([head.fp_position(i) for i in ids])
 
 
 def clone_targets(source: Head, target: Head, names: Iterable[str] | None = None, antialias: float | None = None,

@@ -155,7 +155,6 @@ def test_interpolation_rules():
     space = np.array([[0, 0, 1], [1, 0, 1], [0, 1, 1], [0, 0, 0.5], [1, 0, 0.5], [0, 1, 0.5],
                       [3, 0, 1], [4, 0, 1], [3, 1, 1]], dtype=float)
     tris = np.array([[0, 1, 2], [3, 4, 5], [6, 7, 8]])
-    values = np.arange(9, dtype=float)
     pts = np.array([[0.2, 0.3], [0.2, 0.3], [5.0, 0.0]])
     w = interpolation_matrix(pts, np.array([0.95, 0.55, 1.0]), space, tris, 9, height=1.0)
     assert np.allclose(w.sum(axis=1), 1.0)
