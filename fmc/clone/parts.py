@@ -1,8 +1,9 @@
 """Eyes, teeth, tongue and the other parts beside the skin.
 
 A part is found from its feature points: the part a point is bound to, or, when the
-point lies on the skin mesh, the connected piece of the skin that holds it (a head given
-as one mesh); failing both, a part of the conventional name. Each part's motion in a
+point lies on the skin mesh, the connected piece of the skin that holds it and the pieces
+overlapping that one (a head given as one mesh); failing both, a part of the
+conventional name. Each part's motion in a
 morph target is split into a rigid motion about the part's centre (the eyeball's
 rotation centre; the centroid of teeth, tongue and gums), fitted by least squares
 (Kabsch), and what is left. The target's part turns by the same rotation about its own
@@ -91,17 +92,30 @@ def sphere_centre(points: np.ndarray) -> np.ndarray:
 
 
 def _skin_component(head: Head, vertex: int) -> np.ndarray | None:
-    """Vertices of the skin's connected piece holding ``vertex``, unless it is the largest."""
+    """Vertices of the skin's piece holding ``vertex`` with the pieces that overlap it (an
+    eyeball's iris and sclera), unless it is the largest piece (the face)."""
     skin = head.skin
     t = skin.triangles
     rows = np.r_[t[:, 0], t[:, 1], t[:, 2]]
     cols = np.r_[t[:, 1], t[:, 2], t[:, 0]]
     g = sparse.coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(skin.n_vertices,) * 2)
-    _, label = connected_components(g, directed=False)
-    sizes = np.bincount(label)
-    if label[vertex] == np.argmax(sizes):
+    count, label = connected_components(g, directed=False)
+    largest = np.argmax(np.bincount(label))
+    if label[vertex] == largest:
         return None
-    return np.flatnonzero(label == label[vertex])
+    v = skin.vertices
+    lo = np.full((count, 3), np.inf)
+    hi = np.full((count, 3), -np.inf)
+    np.minimum.at(lo, label, v)
+    np.maximum.at(hi, label, v)
+    group = {int(label[vertex])}
+    while True:
+        glo, ghi = lo[list(group)].min(axis=0), hi[list(group)].max(axis=0)
+        touching = np.flatnonzero((lo <= ghi).all(axis=1) & (hi >= glo).all(axis=1))
+        grown = group | {int(c) for c in touching if c != largest}
+        if grown == group:
+            return np.flatnonzero(np.isin(label, list(group)))
+        group = grown
 
 
 def find_parts(head: Head) -> tuple[dict[str, PartRef], list[str]]:

@@ -349,3 +349,28 @@ def test_fmc_clone_command(tmp_path, validate_gltf):
     head = load_head(tmp_path / "out.glb")
     assert set(head.morph_targets) == {"jawOpen", "eyeBlink_L"}
     assert validate_gltf(tmp_path / "out.glb")["issues"]["numErrors"] == 0
+
+
+def test_an_eye_meshed_with_the_skin_is_found_and_turned():
+    """A head given as one mesh: the eyeball is a piece of the skin holding 3.5."""
+    from mpeg4.head import FeaturePointBinding, Part
+
+    source = _with_eye_turn(load_generic_head())
+    target = load_generic_head()
+    skin, eye = target.parts["skin"], target.parts.pop("eye_l")
+    n = skin.n_vertices
+    target.parts["skin"] = Part("skin", np.r_[skin.vertices, eye.vertices], np.r_[skin.triangles, eye.triangles + n])
+    b = source.feature_points["3.5"]
+    target.feature_points["3.5"] = FeaturePointBinding("skin", tuple(v + n for v in b.vertices), b.weights)
+    target.morph_targets = {}
+    parts, notes = find_parts(target)
+    assert parts["eye_l"].part == "skin" and len(parts["eye_l"].vertices) == eye.n_vertices
+    assert "installed" in notes[0]  # a piece of a mesh has no centre of its own
+    cloned = clone_targets(source, target, ["look_up_l", "eyeBlink_L"])
+    d = cloned["look_up_l"]["skin"].dense(target.skin.n_vertices)
+    assert np.abs(d[:n]).max() == 0  # the face does not move with the eye
+    want = source.morph_targets["look_up_l"]["eye_l"].dense(eye.n_vertices)
+    assert np.abs(d[n:] - want).max() < 1e-4  # turned as the source's (about a sphere's centre)
+    # The blink moves the lid, not the eyeball under it.
+    blink = cloned["eyeBlink_L"]["skin"].dense(target.skin.n_vertices)
+    assert np.abs(blink[n:]).max() < 1e-9 and np.abs(blink[:n]).max() > 5e-3
