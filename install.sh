@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
 # Install everything the project needs on a fresh machine (Debian + Python >= 3.11 + Node):
-# system libraries for headless rendering, the Python package with its test extras, and
-# the Khronos glTF validator used by the tests.
+# system libraries for headless rendering, espeak-ng, Chromium (the annotation page's browser
+# tests), the Node tools (the Khronos glTF validator used by the tests; three.js, bundled
+# into the annotation page), and the Python package with its test extras.
 set -euo pipefail
 cd "$(dirname "$0")"
 
 need=()
-for pkg in libegl1 libgl1-mesa-dri libgbm1 espeak-ng; do
+for pkg in libegl1 libgl1-mesa-dri libgbm1 espeak-ng chromium chromium-driver; do
   dpkg -s "$pkg" >/dev/null 2>&1 || need+=("$pkg")
 done
 if [ ${#need[@]} -gt 0 ]; then
@@ -19,6 +20,7 @@ if [ ${#need[@]} -gt 0 ]; then
   fi
 fi
 
-python3 -m pip install -q --disable-pip-version-check -e ".[test]"
 npm ci --silent --no-audit --no-fund
+npm run build --silent  # three.js for the annotation page's 3D view, before the package is installed
+python3 -m pip install -q --disable-pip-version-check -e ".[test]"
 echo "install.sh: done"

@@ -33,20 +33,31 @@ def convert(head: Path = typer.Argument(..., help="Head to read (.glb, .gltf, .o
 
 
 @app.command()
-def author(head: Path = typer.Argument(..., help="Head with feature points and sculpted morph targets (.glb)."),
+def author(head: Path = typer.Argument(..., help="Head with feature points (.glb; sculpted morph targets for --method shapes)."),
            out: Path = typer.Option(..., "-o", "--out", help="Head to write with its animation tables (.glb)."),
-           value: float = typer.Option(512.0, help="FAP value the tables are authored at (interval borders).")
+           value: float = typer.Option(512.0, help="FAP value the tables are authored at (interval borders)."),
+           method: str = typer.Option("shapes", help="shapes: from the head's sculpted (ARKit-named) shapes; "
+                                                     "muscles: FaceEngine's muscle model placed from the feature points.")
            ) -> None:
-    """Author Facial Animation Tables from the head's sculpted (ARKit-named) shapes: the 66
-    low-level FAPs, the 15 visemes and the 7 expressions."""
+    """Author Facial Animation Tables: the 66 low-level FAPs, the 15 visemes and the 7 expressions."""
     from collections import Counter
 
-    from fmc.author import author_from_shapes, author_high_level
     from mpeg4.io import load_head, save_head
 
     h = load_head(head)
-    fat, report = author_from_shapes(h, value=value)
-    fat.update(author_high_level(h))
+    if method == "shapes":
+        from fmc.author import author_from_shapes, author_high_level
+
+        fat, report = author_from_shapes(h, value=value)
+        fat.update(author_high_level(h))
+    elif method == "muscles":
+        from fmc.muscles import MuscleRig, author_from_muscles, author_high_level_from_muscles
+
+        rig = MuscleRig.from_head(h)
+        fat, report = author_from_muscles(h, value=value, rig=rig)
+        fat.update(author_high_level_from_muscles(rig))
+    else:
+        raise InputError(f"unknown authoring method {method!r}", fix="use --method shapes or --method muscles")
     h.fat = fat
     save_head(h, out)
     routes = Counter(r.route for r in report)
@@ -121,6 +132,26 @@ def clone_cmd(source: Path = typer.Option(..., "--source", help="Head with motio
     for w in warnings:
         typer.echo(f"fmc: warning: {w}", err=True)
     typer.echo(save_head(head, out))
+
+
+@app.command()
+def retarget(source: Path = typer.Argument(..., help="Source head (.glb): key-models as morph targets, or ARKit shapes."),
+             target: Path = typer.Argument(..., help="Target head (.glb, or .obj + fdp.json); key-models it lacks "
+                                                     "are drafted by FMC."),
+             animation: Path = typer.Argument(..., help="Source animation: .glb (morph weights), .npz (vertices) "
+                                                        "or .fap (through the source's tables)."),
+             out: Path = typer.Option(Path("retarget_out"), "-o", "--out", help="Output folder."),
+             key_models: str = typer.Option("visemes-expressions", help="Source key-models: visemes-expressions "
+                                            "(14 visemes x 6 expressions, composited) or morph-targets (as they are)."),
+             drafts: Path = typer.Option(None, help="Also write the target with all its key-models (.glb) to edit."),
+             npz: bool = typer.Option(False, help="Also write the target vertex frames (frames.npz).")) -> None:
+    """Clone an animation onto another head by example-based cloning (Pyun et al.): the target's own
+    key-models, blended per frame: animation.glb (key-models as morph targets, weights animated)."""
+    from fmc.example_based import retarget as run
+
+    for kind, path in run(source, target, animation, out, key_models=key_models, drafts=drafts, npz=npz,
+                          progress=lambda m: typer.echo(f"fmc: {m}", err=True)).items():
+        typer.echo(f"{kind}: {path}")
 
 
 @app.command("fap-info")

@@ -2,11 +2,14 @@
 
 Built from the ICT FaceKit by ``scripts/build_generic_head.py``; see
 ``data/generic_head/README.md`` for what it holds and how its feature points were placed.
-Set the environment variable ``MPEG4_GENERIC_HEAD`` to a GLB to use another generic head.
+Its complete Facial Animation Tables are stored beside it in ``generic_head_fat.npz``
+(``scripts/build_generic_fat.py``). Set the environment variable ``MPEG4_GENERIC_HEAD``
+to a GLB to use another generic head (its tables, if any, in ``<name>_fat.npz`` beside it).
 """
 
 from __future__ import annotations
 
+import copy
 import functools
 import os
 from pathlib import Path
@@ -14,7 +17,7 @@ from pathlib import Path
 from .errors import InputError
 from .head import Head
 
-__all__ = ["GENERIC_HEAD_DIR", "generic_head_path", "load_generic_head"]
+__all__ = ["GENERIC_HEAD_DIR", "generic_head_path", "generic_fat_path", "load_generic_head"]
 
 #: Folder of the shipped generic head.
 GENERIC_HEAD_DIR = Path(__file__).resolve().parents[1] / "data" / "generic_head"
@@ -26,6 +29,12 @@ def generic_head_path() -> Path:
     return Path(env) if env else GENERIC_HEAD_DIR / "generic_head.glb"
 
 
+def generic_fat_path() -> Path:
+    """The FAT file beside the generic head in use: ``<name>_fat.npz``."""
+    head = generic_head_path()
+    return head.with_name(head.stem + "_fat.npz")
+
+
 @functools.lru_cache(maxsize=4)
 def _load(path: str) -> Head:
     from .io import load_head
@@ -33,10 +42,31 @@ def _load(path: str) -> Head:
     return load_head(path)
 
 
-def load_generic_head() -> Head:
-    """A fresh copy of the generic head (read once per process)."""
+@functools.lru_cache(maxsize=4)
+def _load_fat(path: str):
+    from .io.fat_npz import read_fat_npz
+
+    return read_fat_npz(path)
+
+
+def load_generic_head(with_fat: bool = False) -> Head:
+    """A fresh copy of the generic head (read once per process).
+
+    Parameters
+    ----------
+    with_fat : bool
+        Also attach its complete Facial Animation Tables (66 low-level FAPs, 15 visemes,
+        7 expressions) from :func:`generic_fat_path`.
+    """
     path = generic_head_path()
     if not path.exists():
         raise InputError("the generic head is missing", where=str(path),
                          fix="run: python3 scripts/build_generic_head.py (it needs ../shared/data/ict_facekit)")
-    return _load(str(path)).copy()
+    head = _load(str(path)).copy()
+    if with_fat:
+        fat_path = generic_fat_path()
+        if not fat_path.exists():
+            raise InputError("the generic head's animation tables are missing", where=str(fat_path),
+                             fix="run: python3 scripts/build_generic_fat.py")
+        head.fat = copy.deepcopy(_load_fat(str(fat_path)))
+    return head

@@ -46,6 +46,49 @@ def fit(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
 
 
 @app.command()
+def build(front: Path = typer.Argument(None, help="Front photo (JPEG/PNG); by default the one the annotations name."),
+          side: Path = typer.Argument(None, help="Side (profile) photo; by default the one the annotations name."),
+          fdp: Path = typer.Option(None, "--fdp", help="Annotations of both photos (*.fdp.json)."),
+          out: Path = typer.Option(Path("head_out"), "-o", "--out", help="Output folder."),
+          ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm (photos carry no size)."),
+          focal: float = typer.Option(None, "--focal", help="Focal length in pixels; orthographic cameras if omitted."),
+          method: str = typer.Option("dffd", "--method", help="dffd (exact Sibson) or rbf (thin-plate spline)."),
+          texture_size: int = typer.Option(2048, "--texture-size", help="Side of the square texture in pixels."),
+          atlas: bool = typer.Option(False, "--atlas", help="Re-pack the texture into a non-overlapping atlas (xatlas)."),
+          shape_from: Path = typer.Option(None, "--shape-from", help="Shape from this annotated pair (*.fdp.json)."),
+          texture_from: Path = typer.Option(None, "--texture-from", help="Texture from this annotated pair (*.fdp.json).")
+          ) -> None:
+    """Shape, texture and export in one step: head.glb, head.obj + head.mtl + texture.png, head.fdp.json, preview.png."""
+    from .build import run_build
+
+    paths = run_build(front, side, fdp, out, ipd_mm=ipd, focal_px=focal, method=method, texture_size=texture_size,
+                      atlas=atlas, shape_from=shape_from, texture_from=texture_from, progress=_say)
+    for kind, path in paths.items():
+        typer.echo(f"{kind}: {path}")
+
+
+@app.command()
+def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
+             side: Path = typer.Argument(..., help="Side (profile) photo."),
+             fdp: Path = typer.Option(None, "--fdp", help="Annotation file (*.fdp.json): read if it exists, "
+                                                          "saved as you work [default: FRONT.fdp.json beside it]."),
+             browser: bool = typer.Option(True, "--browser/--no-browser", help="Open the page in the browser."),
+             port: int = typer.Option(0, "--port", help="Port on 127.0.0.1 (0: any free one)."),
+             ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm, for the 3D preview."),
+             focal: float = typer.Option(None, "--focal", help="Focal length in pixels, for the 3D preview; "
+                                                               "orthographic cameras if omitted.")) -> None:
+    """Place and correct the feature points on the two photos in a local web page."""
+    from .annotate import annotate as run_annotate
+
+    def ready(url: str) -> None:
+        typer.echo(f"annotate: {url}")
+        _say("serving on 127.0.0.1 only; press Ctrl-C to stop")
+
+    path = run_annotate(front, side, fdp, open_browser=browser, port=port, ipd_mm=ipd, focal_px=focal, ready=ready)
+    typer.echo(f"fdp: {path}")
+
+
+@app.command()
 def preview(head: Path = typer.Argument(..., help="Head file (.glb, .gltf or .obj with its .fdp.json)."),
             out: Path = typer.Option(Path("preview.png"), "-o", "--out", help="PNG to write."),
             size: int = typer.Option(720, help="Height of each view in pixels."),

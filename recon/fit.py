@@ -12,26 +12,46 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from mpeg4.errors import InputError, require_file
+from mpeg4.errors import InputError
 from mpeg4.head import Head
 
 from .calibrate import DEFAULT_IPD_MM, Calibration, calibrate
 from .deform import deform_head
 
-__all__ = ["fit_head", "run_fit", "image_size"]
+__all__ = ["fit_head", "run_fit", "image_size", "attach_photo_sizes"]
 
 
 def image_size(path: str | os.PathLike) -> tuple[int, int]:
-    """(width, height) in pixels of a photo, read from its header."""
-    from PIL import Image, UnidentifiedImageError
+    """(width, height) in pixels of a photo as displayed (EXIF orientation applied)."""
+    from .photos import photo_size
 
-    path = require_file(path, "photo")
-    try:
-        with Image.open(path) as im:
-            return im.size
-    except (UnidentifiedImageError, OSError) as e:
-        raise InputError(f"not an image this tool can read ({e.__class__.__name__})", where=path,
-                         fix="give a JPEG or PNG photo") from None
+    return photo_size(path)
+
+
+def attach_photo_sizes(fdp, sizes: dict[str, tuple[int, int]], where: str, photos: dict[str, str] | None = None):
+    """Check that each view's annotations were made on a photo of this size, and record it.
+
+    Parameters
+    ----------
+    fdp : mpeg4.io.fdp_json.FdpFile
+        Changed in place: each view's ``width`` and ``height`` are set.
+    sizes : dict of str to (width, height)
+        ``front`` and ``side`` photo sizes.
+    where : str
+        The annotation file's name, for errors.
+    photos : dict of str to str, optional
+        The photos' paths, for errors.
+    """
+    for name, (w, h) in sizes.items():
+        view = fdp.views.get(name)
+        if view is None:
+            continue
+        if view.width and view.height and (view.width, view.height) != (w, h):
+            photo = (photos or {}).get(name, f"the {name} photo")
+            raise InputError(f"the {name} annotations were made on a {view.width}x{view.height} image but "
+                             f"{photo} is {w}x{h}", where=where,
+                             fix="annotate this photo, or give the photo the annotations were made on")
+        view.width, view.height = w, h
 
 
 def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
@@ -108,16 +128,9 @@ def run_fit(front_photo, side_photo, fdp_path, out_dir, ipd_mm: float = DEFAULT_
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
     fdp = read_fdp_json(fdp_path)
-    for name, photo in (("front", front_photo), ("side", side_photo)):
-        w, h = image_size(photo)
-        view = fdp.views.get(name)
-        if view is None:
-            continue
-        if view.width and view.height and (view.width, view.height) != (w, h):
-            raise InputError(f"the {name} annotations were made on a {view.width}x{view.height} image but "
-                             f"{photo} is {w}x{h}", where=os.fspath(fdp_path),
-                             fix="annotate this photo, or give the photo the annotations were made on")
-        view.width, view.height = w, h
+    photos = {"front": front_photo, "side": side_photo}
+    attach_photo_sizes(fdp, {n: image_size(p) for n, p in photos.items()}, os.fspath(fdp_path),
+                       {n: os.fspath(p) for n, p in photos.items()})
     say("fitting the generic head to the feature points")
     head, cal = fit_head(fdp, ipd_mm=ipd_mm, focal_px=focal_px, method=method, where=os.fspath(fdp_path))
     out = Path(out_dir)

@@ -41,6 +41,7 @@ sys.path.insert(0, str(ROOT))
 
 from mpeg4.catalogue import FEATURE_POINTS, FP_IDS  # noqa: E402
 from mpeg4.head import FeaturePointBinding, Head, Part, SparseDisplacement  # noqa: E402
+from recon.materials import eye_texture, eye_uv  # noqa: E402
 
 DEFAULT_NPZ = ROOT.parent / "shared" / "data" / "ict_facekit" / "ict_facekit.npz"
 DEFAULT_OUT = ROOT / "data" / "generic_head" / "generic_head.glb"
@@ -145,41 +146,6 @@ def split_parts(data) -> dict[str, np.ndarray]:
     for name, tris in groups.items():
         out[name] = np.sort(np.concatenate(tris))
     return out
-
-
-#: Angular radius of the iris seen from the eyeball's centre (about 6 mm on a 15.8 mm
-#: eyeball), and the pupil's share of the iris (a third, as in the MPEG-4 neutral face).
-IRIS_DEG, PUPIL_SHARE = 22.0, 1.0 / 3.0
-
-
-def eye_texture(size: int = 256, iris_rgb=(92, 64, 40)) -> np.ndarray:
-    """(size, size, 3) uint8 eye texture made here: sclera, iris with radial fibres and a
-    darker limbal ring, black pupil, centred; the corners are sclera (the eye's back)."""
-    y, x = (np.mgrid[0:size, 0:size] + 0.5) / size - 0.5
-    r = np.hypot(x, y) * 2  # 1 at the texture's edge, which maps to the eyeball's equator
-    iris_r = np.sin(np.radians(IRIS_DEG))
-    angle = np.arctan2(y, x)
-    fibres = 0.85 + 0.15 * np.sin(angle * 47) * np.sin(angle * 13 + 3 * r / iris_r)
-    img = np.empty((size, size, 3))
-    img[:] = (236, 232, 226)
-    iris = r < iris_r
-    shade = np.clip(1.15 - 0.6 * (r / iris_r) ** 4, 0.5, 1.2) * fibres
-    img[iris] = np.asarray(iris_rgb, float) * shade[iris, None]
-    img[r < iris_r * PUPIL_SHARE] = (12, 10, 10)
-    return np.clip(img, 0, 255).astype(np.uint8)
-
-
-def eye_uv(vertices: np.ndarray, centre: np.ndarray, gaze: np.ndarray) -> np.ndarray:
-    """(N, 2) uv: the front hemisphere projected along the gaze onto the texture's disc."""
-    g = gaze / np.linalg.norm(gaze)
-    e1 = np.cross([0.0, 1.0, 0.0], g)
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(g, e1)
-    d = vertices - centre
-    radius = np.linalg.norm(d, axis=1).max()
-    uv = 0.5 + 0.5 * np.c_[d @ e1, d @ e2] / radius
-    uv[d @ g < 0] = 0.02  # the back of the eye: a sclera corner
-    return uv
 
 
 def sphere_fit(points: np.ndarray) -> tuple[np.ndarray, float]:

@@ -1,5 +1,6 @@
 """The command lines: help texts, python -m, one-line errors."""
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -14,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
 
 
-@pytest.mark.parametrize("app, commands", [(recon_app, ["example", "fit", "preview"]),
+@pytest.mark.parametrize("app, commands", [(recon_app, ["example", "fit", "annotate", "preview"]),
                                            (fmc_app, ["info", "convert", "author", "play", "say", "animate", "clone", "fap-info"])])
 def test_help_describes_every_command(app, commands):
     out = runner.invoke(app, ["--help"])
@@ -35,9 +36,11 @@ def test_python_m_works(module):
     (["fmc", "info", "no_such_head.glb"], "no_such_head.glb: head file not found"),
     (["fmc", "fap-info", "no_such.fap"], "no_such.fap"),
     (["recon", "preview", "missing.obj"], "missing.obj"),
+    (["recon", "annotate", "nope.jpg", "side.jpg", "--no-browser"], "nope.jpg: front photo not found"),
 ])
 def test_missing_files_give_one_line_errors(argv, needle, tmp_path):
-    out = subprocess.run([sys.executable, "-m", *argv], capture_output=True, text=True, cwd=tmp_path)
+    env = dict(os.environ, PYTHONPATH=str(ROOT))  # this checkout's packages, whatever is installed
+    out = subprocess.run([sys.executable, "-m", *argv], capture_output=True, text=True, cwd=tmp_path, env=env)
     assert out.returncode == 2
     assert needle in out.stderr
     assert len(out.stderr.strip().splitlines()) == 1, out.stderr

@@ -34,7 +34,7 @@ def _png_bytes(image: np.ndarray) -> bytes:
     return data.tobytes()
 
 
-def write_obj(head: Head, path: str | os.PathLike) -> list[str]:
+def write_obj(head: Head, path: str | os.PathLike, texture_names: dict[str, str] | None = None) -> list[str]:
     """Write ``head`` as OBJ + MTL + PNGs + ``.fdp.json`` (all atomically).
 
     Writes ``<stem>.obj`` (one ``o <part>`` / ``usemtl <part>`` group per part, vertices in
@@ -50,6 +50,9 @@ def write_obj(head: Head, path: str | os.PathLike) -> list[str]:
         The head to write.
     path : str or os.PathLike
         The ``.obj`` path; the other files take its stem.
+    texture_names : dict of str to str, optional
+        Part name → file name (in the OBJ's folder) for its texture, instead of
+        ``<stem>_<part>.png``.
 
     Returns
     -------
@@ -81,7 +84,8 @@ def write_obj(head: Head, path: str | os.PathLike) -> list[str]:
             lines.extend(f"f {a} {b} {c}" for a, b, c in t)
         mtl_lines += [f"newmtl {name}", "Kd " + " ".join(f"{c:.6g}" for c in part.colour), "Ka 0 0 0", "Ks 0 0 0"]
         if part.texture is not None:
-            png = Path(f"{stem}_{name}.png")
+            png = path.parent / texture_names[name] if texture_names and name in texture_names \
+                else Path(f"{stem}_{name}.png")
             with atomic_write(png, "wb") as f:
                 f.write(_png_bytes(part.texture))
             mtl_lines.append(f"map_Kd {png.name}")

@@ -1,0 +1,74 @@
+"""Texture speed: composite + blend + texture coordinates at 1024² and 2048², both blends.
+
+On the embedded example (its photos and feature points, the head fitted to them), times
+:func:`recon.texture.texture_skin` — what each photo sees of the head, the layout of every
+skin vertex, the side photo warped along the feature lines (and flipped), the three layers
+blended — at two texture sizes with OpenCV's multi-band blender, and the blend alone with
+the scikit-image pyramids at the larger size, in one run. Best of ``--repeat`` runs.
+
+Run: ``python3 benchmarks/texture_speed.py [--repeat 3]``
+Prints ``name: value unit`` lines; the last line is a summary. Target: ≤ 1.5 s at 2048².
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    args = ap.parse_args(argv)
+    from recon.build import load_pair
+    from recon.cameras import fit_camera
+    from recon.example import EXAMPLE_FDP, example_camera
+    from recon.fit import fit_head
+    from recon.texture import blend_multiband, texture_skin
+
+    cam = example_camera()
+    pair = load_pair(EXAMPLE_FDP)
+    head, _ = fit_head(pair.fdp, ipd_mm=cam["ipd_mm"], focal_px=cam["focal_px"])
+    pts = head.fp_positions()
+    cams = {n: fit_camera(pts, pair.fdp.views[n].points, pair.fdp.views[n].width, pair.fdp.views[n].height,
+                          focal_px=cam["focal_px"]) for n in ("front", "side")}
+    texture_skin(head, pair.front, pair.side, cams["front"], cams["side"], size=512)  # warm-up (GL context)
+    results = {}
+    for size in (1024, 2048):
+        best = None
+        for _ in range(args.repeat):
+            t0 = time.perf_counter()
+            st = texture_skin(head, pair.front, pair.side, cams["front"], cams["side"], size=size)
+            dt = time.perf_counter() - t0
+            if best is None or dt < best[0]:
+                best = (dt, st.timings)
+        results[size] = best
+        dt, tm = best
+        print(f"texture_{size}_total: {dt:.3f} s")
+        for step in ("visibility", "layout", "warp", "blend"):
+            print(f"texture_{size}_{step}: {tm[step]:.3f} s")
+    # The two blend implementations on the same layers, in one run.
+    layers, masks = st.layers, st.masks
+    times = {}
+    for method in ("opencv", "skimage"):
+        best = float("inf")
+        for _ in range(args.repeat if method == "opencv" else 1):
+            t0 = time.perf_counter()
+            blend_multiband(layers, masks, method=method)
+            best = min(best, time.perf_counter() - t0)
+        times[method] = best
+        print(f"blend_2048_{method}: {best:.3f} s")
+    print(f"blend_2048_skimage_over_opencv: {times['skimage'] / times['opencv']:.1f} x")
+    total = results[2048][0]
+    print(f"summary: texture at 2048² in {total:.2f} s (target 1.5 s: {'met' if total <= 1.5 else 'not met'}); "
+          f"OpenCV blend {times['opencv']:.2f} s, scikit-image {times['skimage']:.2f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,387 @@
+"""``recon build``: shape, texture and export of one head from two annotated photos.
+
+:func:`build_head` is the computation: the generic head fitted to the feature points
+(:func:`recon.fit.fit_head`), the photos' cameras recovered from them
+(:func:`recon.cameras.fit_camera`), the skin textured from both photos
+(:func:`recon.texture.texture_skin`), the other parts given textures of their own, and
+optionally the whole re-packed into a clean atlas (:func:`recon.atlas.repack`). Shape and
+texture may come from different photo pairs (Lee et al. 2.3.1): the texture is laid out on
+the head fitted to its own pair, and carried to the shape's head, which has the same
+topology.
+
+:func:`run_build` is what the command runs: it reads the photos and annotations, builds,
+and writes the bundle — ``head.glb``, ``head.obj`` + ``head.mtl`` + ``texture.png``,
+``head.fdp.json`` (3D feature points, their texture coordinates, FAPU, the annotations and
+the provenance: inputs, options, version) and ``preview.png`` (renders beside the input
+photos). Everything is written into a temporary folder first and moved into place file by
+file, so a failed or interrupted run leaves the previous bundle as it was.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mpeg4.errors import InputError
+from mpeg4.head import Head
+
+from .calibrate import DEFAULT_IPD_MM
+from .cameras import FittedCamera, fit_camera
+from .fit import attach_photo_sizes, fit_head
+from .photos import check_photo, read_photo
+
+__all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "run_build", "bundle_fdp", "preview_with_photos",
+           "DEFAULT_TEXTURE_SIZE"]
+
+#: Texture size (pixels, square) unless asked otherwise.
+DEFAULT_TEXTURE_SIZE = 2048
+
+# How far (degrees) a fitted camera may look away from the direction its photo should show.
+_MAX_VIEW_ERROR_DEG = 35.0
+# Largest RMS distance between marked points and the fitted camera's projection, as a
+# share of the interpupillary distance in that photo.
+_MAX_RESIDUAL_SHARE = 0.12
+
+
+@dataclass
+class PhotoPair:
+    """A front and a side photo with their annotations.
+
+    Attributes
+    ----------
+    front, side : (H, W, 3) uint8
+    fdp : mpeg4.io.fdp_json.FdpFile
+        With ``front`` and ``side`` views; their sizes match the photos.
+    paths : dict of str to str
+        ``front``, ``side`` and ``fdp`` as given (for provenance and errors).
+    """
+
+    front: np.ndarray
+    side: np.ndarray
+    fdp: object
+    paths: dict[str, str] = field(default_factory=dict)
+
+
+def load_pair(fdp_path: str | os.PathLike, front: str | os.PathLike | None = None,
+              side: str | os.PathLike | None = None) -> PhotoPair:
+    """Read an annotation file and its two photos.
+
+    Parameters
+    ----------
+    fdp_path : path
+        The ``*.fdp.json`` with ``front`` and ``side`` views.
+    front, side : path, optional
+        The photos; by default the ``image`` each view records, relative to the file.
+    """
+    from mpeg4.io import read_fdp_json
+
+    fdp_path = os.fspath(fdp_path)
+    fdp = read_fdp_json(fdp_path)
+    given = {"front": front, "side": side}
+    paths = {}
+    for name in ("front", "side"):
+        view = fdp.views.get(name)
+        if view is None or not view.points:
+            raise InputError(f"no feature points for the {name} photo", where=f"{fdp_path}, views",
+                             fix=f"annotate the {name} photo (recon annotate)")
+        p = given[name]
+        if p is None:
+            if not view.image:
+                raise InputError(f"the {name} view names no photo", where=f"{fdp_path}, views.{name}.image",
+                                 fix=f"give the {name} photo on the command line")
+            p = Path(view.image)
+            if not p.is_absolute():
+                p = Path(fdp_path).resolve().parent / p
+        paths[name] = os.fspath(p)
+    images = {n: read_photo(p, f"{n} photo") for n, p in paths.items()}
+    for n, im in images.items():
+        check_photo(im, paths[n])
+    attach_photo_sizes(fdp, {n: (im.shape[1], im.shape[0]) for n, im in images.items()}, fdp_path, paths)
+    paths["fdp"] = fdp_path
+    return PhotoPair(images["front"], images["side"], fdp, paths)
+
+
+@dataclass
+class BuildResult:
+    """A built head and what went into it.
+
+    Attributes
+    ----------
+    head : Head
+        Textured; ``metadata["build"]`` records the options and the fit.
+    cameras : dict of str to FittedCamera
+        Of the texture's photos (``front``, ``side``, ``mirrored``).
+    skin : recon.texture.SkinTexture
+    timings : dict of str to float
+        Seconds per step.
+    """
+
+    head: Head
+    cameras: dict[str, FittedCamera]
+    skin: object
+    timings: dict[str, float]
+
+
+def _check_cameras(cams: dict[str, FittedCamera], pair: PhotoPair, where: str) -> None:
+    """Refuse annotations that no plausible front/side camera explains (a profile passed
+    as the front photo, points labelled on the wrong photo)."""
+    for name, want, what in (("front", np.array([0.0, 0.0, 1.0]), "from the front"),
+                             ("side", None, "from the side")):
+        cam = cams[name].camera
+        toward = cam.rotation[2]  # from the head towards the camera
+        if want is None:
+            angle = np.degrees(np.arccos(np.clip(abs(toward[0]), 0, 1)))
+        else:
+            angle = np.degrees(np.arccos(np.clip(toward @ want, -1, 1)))
+        if angle > _MAX_VIEW_ERROR_DEG:
+            raise InputError(f"the points marked on the {name} photo fit a camera {angle:.0f} degrees away from "
+                             f"looking {what}", where=f"{where}, views.{name}",
+                             fix=f"check that the {name} photo shows the face {what} and that its points are "
+                                 f"marked on it (not on the other photo)")
+        view = pair.fdp.views[name]
+        pts = [view.points[i] for i in ("3.5", "3.6") if i in view.points]
+        scale = np.linalg.norm(pts[0] - pts[1]) if len(pts) == 2 else None
+        if scale is None:  # the side photo shows one pupil: use the eye to the ear
+            a = [view.points[i] for i in ("3.5", "3.6") if i in view.points]
+            b = [view.points[i] for i in ("10.9", "10.10", "10.7", "10.8") if i in view.points]
+            scale = np.linalg.norm(a[0] - b[0]) if a and b else max(view.width or 1, view.height or 1) * 0.1
+        rms = cams[name].rms_px
+        if rms > _MAX_RESIDUAL_SHARE * scale:
+            worst = sorted(cams[name].residual_px.items(), key=lambda kv: -kv[1])[:3]
+            raise InputError(f"the points marked on the {name} photo do not fit one camera (off by {rms:.0f} px on "
+                             f"average; worst " + ", ".join(f"{i} by {r:.0f} px" for i, r in worst) + ")",
+                             where=f"{where}, views.{name}",
+                             fix="move those points to where the catalogue describes them (recon annotate)")
+
+
+def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float = DEFAULT_IPD_MM,
+               focal_px: float | None = None, method: str = "dffd", texture_size: int = DEFAULT_TEXTURE_SIZE,
+               atlas: bool = False, blend: str = "opencv", generic: Head | None = None,
+               progress: Callable[[str], None] | None = None) -> BuildResult:
+    """A textured head from annotated photos.
+
+    Parameters
+    ----------
+    shape : PhotoPair
+        The photos and annotations the head's shape comes from.
+    texture : PhotoPair, optional
+        Those the texture comes from (the same pair by default).
+    ipd_mm, focal_px, method
+        See :func:`recon.fit.fit_head` (they apply to both pairs).
+    texture_size : int
+        Side of the square skin texture, pixels.
+    atlas : bool
+        Re-pack the texture into a non-overlapping atlas (:func:`recon.atlas.repack`).
+    blend : {"opencv", "skimage"}
+        Implementation of the multiresolution spline.
+    generic : Head, optional
+        The head to deform (the shipped generic head by default).
+    progress : callable, optional
+        Called with a short message before each step.
+
+    Returns
+    -------
+    BuildResult
+    """
+    from .texture import texture_skin, textured_head
+
+    say = progress or (lambda m: None)
+    times = {}
+    t0 = time.perf_counter()
+    say("fitting the generic head to the feature points")
+    head, cal = fit_head(shape.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
+                         where=shape.paths.get("fdp", "fdp.json"))
+    tex_pair = texture or shape
+    tex_head = head
+    if texture is not None:
+        say("fitting the generic head to the texture's photos")
+        tex_head, _ = fit_head(texture.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
+                               where=texture.paths.get("fdp", "fdp.json"))
+    times["shape"] = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    pts = tex_head.fp_positions()
+    where = tex_pair.paths.get("fdp", "fdp.json")
+    cams = {}
+    for name in ("front", "side"):
+        view = tex_pair.fdp.views[name]
+        cams[name] = fit_camera(pts, view.points, view.width, view.height, focal_px=focal_px,
+                                where=f"{where}, views.{name}")
+    _check_cameras(cams, tex_pair, where)
+    skin = texture_skin(tex_head, tex_pair.front, tex_pair.side, cams["front"], cams["side"], size=texture_size,
+                        blend=blend, progress=say)
+    out = textured_head(head, skin, tex_pair.front)
+    times["texture"] = time.perf_counter() - t1
+    if atlas:
+        from .atlas import repack
+
+        t2 = time.perf_counter()
+        say("re-packing the texture into an atlas (xatlas)")
+        out = repack(out, size=texture_size)
+        times["atlas"] = time.perf_counter() - t2
+    out.metadata = dict(out.metadata, build=dict(
+        camera_residual_px={n: round(c.rms_px, 3) for n, c in cams.items()},
+        texture_regions=out.metadata.get("texture", {}).get("regions")))
+    times["total"] = time.perf_counter() - t0
+    return BuildResult(out, skin.cameras, skin, times)
+
+
+def _sha256(path: str) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("mpeg4-heads")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def bundle_fdp(head: Head, shape: PhotoPair, texture: PhotoPair | None, options: dict):
+    """The ``head.fdp.json`` of a build: 3D points, bindings, texture coordinates, FAPU, the
+    annotations of the shape's photos and the provenance (inputs with their SHA-256,
+    options, version)."""
+    from mpeg4.io import fdp_from_head
+
+    fdp = fdp_from_head(head)
+    fdp.views = shape.fdp.views
+    inputs = {"shape": {k: {"path": v, "sha256": _sha256(v)} for k, v in shape.paths.items()}}
+    if texture is not None:
+        inputs["texture"] = {k: {"path": v, "sha256": _sha256(v)} for k, v in texture.paths.items()}
+    meta = {k: v for k, v in fdp.metadata.items() if k not in ("duplicated_vertices",)}
+    meta["provenance"] = {"tool": "recon build", "version": _version(), "inputs": inputs, "options": options,
+                          "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+    fdp.metadata = meta
+    return fdp
+
+
+def preview_with_photos(head: Head, pair: PhotoPair, size: int = 720) -> np.ndarray:
+    """(H, W, 3) uint8: the input photos, then the head's labelled front, side and
+    three-quarter renders, all ``size`` pixels high."""
+    import cv2
+
+    from mpeg4.preview import preview_image
+
+    sheet = preview_image(head, size=size)
+    photos = []
+    for im in (pair.front, pair.side):
+        h, w = im.shape[:2]
+        scale = size / h
+        small = cv2.resize(im, (max(1, round(w * scale)), size), interpolation=cv2.INTER_AREA)
+        photos.append(small)
+    strip = np.concatenate(photos, axis=1)
+    pad = np.full((sheet.shape[0] - size, strip.shape[1], 3), 255, np.uint8)
+    left = np.concatenate([strip, pad], axis=0)
+    cv2.putText(left, "input photos", (12, size + 30), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (40, 40, 40), 1, cv2.LINE_AA)
+    return np.concatenate([left, sheet], axis=1)
+
+
+def _write_bundle(result: BuildResult, shape: PhotoPair, texture: PhotoPair | None, options: dict,
+                  folder: Path, say) -> dict[str, Path]:
+    import cv2
+
+    from mpeg4.io import save_head, write_fdp_json
+    from mpeg4.io.obj import write_obj
+
+    head = result.head
+    paths = {"head": folder / "head.glb", "obj": folder / "head.obj", "mtl": folder / "head.mtl",
+             "texture": folder / "texture.png", "fdp": folder / "head.fdp.json", "preview": folder / "preview.png"}
+    say("writing head.glb")
+    save_head(head, paths["head"])
+    say("writing head.obj, head.mtl and the textures")
+    write_obj(head, paths["obj"], texture_names={"skin": "texture.png"})
+    paths.update({f"texture_{n}": folder / f"head_{n}.png" for n, p in head.parts.items()
+                  if p.texture is not None and n != "skin"})
+    fdp = bundle_fdp(head, shape, texture, options)
+    fdp.metadata["obj_parts"] = {n: {"centre": None if p.centre is None else p.centre.tolist()}
+                                 for n, p in head.parts.items()}
+    write_fdp_json(paths["fdp"], fdp)
+    say("rendering preview.png")
+    image = preview_with_photos(head, texture or shape)
+    ok, data = cv2.imencode(".png", np.ascontiguousarray(image[..., ::-1]))
+    if not ok:
+        raise RuntimeError("PNG encoding failed")
+    paths["preview"].write_bytes(data.tobytes())
+    return paths
+
+
+def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, fdp: str | os.PathLike | None,
+              out_dir: str | os.PathLike, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
+              method: str = "dffd", texture_size: int = DEFAULT_TEXTURE_SIZE, atlas: bool = False,
+              shape_from: str | os.PathLike | None = None, texture_from: str | os.PathLike | None = None,
+              progress: Callable[[str], None] | None = None, result: list | None = None) -> dict[str, Path]:
+    """``recon build``: write the textured head bundle.
+
+    Parameters
+    ----------
+    front, side : path or None
+        The photos (with ``fdp``); None to take them from the annotation file.
+    fdp : path or None
+        Annotations of both photos. Give either ``fdp`` or ``shape_from`` (and optionally
+        ``texture_from``).
+    out_dir : path
+        The bundle's folder (created). Files of a previous build are replaced only once the
+        new ones are complete.
+    ipd_mm, focal_px, method, texture_size, atlas
+        See :func:`build_head`.
+    shape_from, texture_from : path, optional
+        Shape–texture separation: the shape from one annotated pair, the texture from
+        another (each file names its photos, or ``front``/``side`` give the shape's).
+    progress : callable, optional
+    result : list, optional
+        If given, the :class:`BuildResult` is appended to it (for callers that go on with
+        the head).
+
+    Returns
+    -------
+    dict of str to Path
+    """
+    say = progress or (lambda m: None)
+    t0 = time.perf_counter()
+    if fdp is not None and shape_from is not None:
+        raise InputError("both --fdp and --shape-from are given", where="recon build",
+                         fix="use --fdp for one pair, or --shape-from with --texture-from for two")
+    shape_path = fdp if fdp is not None else shape_from
+    if shape_path is None:
+        raise InputError("no annotations given", where="recon build",
+                         fix="give --fdp F.fdp.json (or --shape-from A.fdp.json --texture-from B.fdp.json)")
+    if texture_from is not None and fdp is not None:
+        raise InputError("--texture-from goes with --shape-from, not with --fdp", where="recon build",
+                         fix="use --shape-from A.fdp.json --texture-from B.fdp.json")
+    say("reading the photos and annotations")
+    shape = load_pair(shape_path, front, side)
+    texture = load_pair(texture_from) if texture_from is not None else None
+    res = build_head(shape, texture, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
+                     texture_size=texture_size, atlas=atlas, progress=say)
+    options = {"ipd_mm": ipd_mm, "focal_px": focal_px, "method": method, "texture_size": texture_size,
+               "atlas": atlas, "shape_texture_separation": texture is not None}
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=".build-", dir=out))
+    try:
+        written = _write_bundle(res, shape, texture, options, tmp, say)
+        final = {}
+        for key, p in written.items():
+            if p.exists():
+                os.replace(p, out / p.name)
+                final[key] = out / p.name
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    if result is not None:
+        result.append(res)
+    say(f"done in {time.perf_counter() - t0:.1f} s (shape {res.timings['shape']:.1f} s, texture "
+        f"{res.timings['texture']:.1f} s)")
+    return final

@@ -1,0 +1,141 @@
+"""Texture from two photos: the feature-line warp, regions, seams, re-projection."""
+
+import numpy as np
+import pytest
+
+from mpeg4 import InputError
+from recon.build import PhotoPair, build_head, load_pair
+from recon.cameras import fit_camera
+from recon.example import EXAMPLE_FDP, example_camera
+from recon.fidelity import reprojection, seam_smoothness
+from recon.texture import (HIDDEN, FRONT, FeatureLineWarp, blend_multiband, feature_line, texture_skin,
+                           vertex_regions)
+
+
+@pytest.fixture(scope="module")
+def example():
+    cam = example_camera()
+    pair = load_pair(EXAMPLE_FDP)
+    result = build_head(pair, ipd_mm=cam["ipd_mm"], focal_px=cam["focal_px"], texture_size=1024)
+    return pair, result
+
+
+@pytest.fixture(scope="module")
+def identities(ict_npz):
+    from recon.synthetic import load_ict, synthetic_pair
+
+    out = []
+    for seed in (1000, 1003):
+        sp = synthetic_pair(seed, size=(768, 960), data=load_ict(ict_npz), texture_size=512)
+        pair = PhotoPair(sp.front, sp.side, sp.fdp, {})
+        out.append((sp, build_head(pair, ipd_mm=sp.person.ipd_mm, focal_px=sp.focal_px, texture_size=1024)))
+    return out
+
+
+def test_warp_lays_the_side_line_on_the_front_line_and_inverts(example):
+    pair, result = example
+    head = result.head
+    cams = result.cameras
+    pts = head.fp_positions()
+    line, is_fp = feature_line(pts, head.skin.vertices, head.skin.triangles, "L")
+    warp = FeatureLineWarp(cams["side"], cams["front"], line, is_fp, 1.0, (head.skin.vertices, head.skin.triangles))
+    fps = line[is_fp]
+    np.testing.assert_allclose(warp.forward(cams["side"].project(fps)), cams["front"].project(fps), atol=1e-6)
+    # The image warp is the inverse of the vertex map: composite points map back to where they came from.
+    rng = np.random.default_rng(0)
+    side_px = rng.uniform([100, 100], [900, 1100], (200, 2))
+    comp = warp.forward(side_px)
+    A = np.eye(3)
+    A[:2, 2] = comp.min(axis=0) - 20  # a grid whose pixel (x, y) is composite (x + x0, y + y0)
+    size = tuple((np.ceil(comp.max(axis=0) - comp.min(axis=0)) + 41).astype(int)[::-1])
+    back = warp.inverse_map(A, size)
+    gx, gy = comp[:, 0] - A[0, 2], comp[:, 1] - A[1, 2]
+    ix, iy = np.round(gx).astype(int), np.round(gy).astype(int)
+    near = (np.abs(gx - ix) < 1e-9) | True
+    got = back[iy, ix]
+    # Nearest grid pixel: within the warp's local stretch of one pixel.
+    assert np.median(np.linalg.norm(got - side_px, axis=1)) < 2.0 and near.all()
+
+
+def test_regions_put_the_face_in_front_and_the_sockets_out_of_sight(example):
+    pair, result = example
+    skin = result.skin
+    head = result.head
+    n = len(skin.source) - len(head.metadata["duplicated_vertices"]["skin"])
+    region = skin.vertex_region[:n]
+    fp = head.feature_points
+    assert region[fp["9.3"].vertices[0]] == FRONT  # nose tip
+    assert region[fp["8.1"].vertices[0]] == FRONT  # upper lip
+    assert region[fp["11.6"].vertices[0]] not in (FRONT, HIDDEN)  # back of the skull
+    assert region[fp["10.3"].vertices[0]] not in (FRONT, HIDDEN)  # back of the ear
+    # The generic head keeps ICT's order: the mouth socket is skin vertices 11248..13293.
+    mouth = region[11248:13294]
+    assert (mouth == HIDDEN).mean() > 0.8
+    hidden = np.flatnonzero(region == HIDDEN)
+    in_sockets = (hidden >= 11248) & (hidden < 14062)
+    assert in_sockets.mean() > 0.8
+    # The rest: the lips' inner surfaces, the nostrils and the lids' creases.
+    near = [head.fp_position(i) for i in ("9.15", "2.2", "2.3", "3.13", "3.14", "3.1", "3.2")]
+    others = head.skin.vertices[hidden[~in_sockets]]
+    d = np.min([np.linalg.norm(others - c, axis=1) for c in near], axis=0)
+    assert d.max() < 0.03
+    # Texture coordinates lie in the texture; few vertices are duplicated.
+    assert (skin.uv >= 0).all() and (skin.uv <= 1).all()
+    assert len(skin.source) < 1.1 * n
+
+
+def test_vertex_regions_follow_polygon_depth_and_visibility():
+    v = np.array([[0.0, 0, 0.1], [0.0, 0, -0.1], [0.05, 0, 0.1], [-0.2, 0, 0.0], [0.01, 0, 0.09]])
+    poly = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1.0]]) * 0.1
+    px = v[:, :2].copy()
+    px[3] = [0.5, 0.5]  # outside the polygon
+    seen = np.array([True, True, True, True, False])
+    r = vertex_regions(v, poly, px, np.zeros(5), seen, seen_sign=1.0)
+    # front; behind the line (the back of the head) on the seen half; front; outside on the
+    # mirrored half; hidden from everywhere.
+    assert r.tolist() == [FRONT, 1, FRONT, 2, HIDDEN]
+
+
+def test_multiresolution_seams_are_smoother_than_a_cut_or_a_feather(example, identities):
+    cases = [example[1]] + [r for _, r in identities]
+    for result in cases:
+        s = seam_smoothness(result.skin.layers, result.skin.masks)
+        assert s["multiband"] < s["feather"] < s["hard"], s
+        assert s["multiband"] < 0.85 * s["feather"], s
+
+
+def test_reprojection_gives_the_photo_back(example, identities):
+    # The front region is the front photo resampled twice (into the texture, then onto the
+    # screen) and evened out towards the side photos by the spline's coarsest band; on the
+    # ten identities of benchmarks/texture_fidelity.py that costs 34.6-39.1 dB, SSIM >= 0.977.
+    # 30 dB (an RMS error of 8 grey levels) would mean texture in the wrong place; the
+    # example is a JPEG (its blocks cost ~5 dB more).
+    pair, result = example
+    fid = reprojection(result.head, pair.front, result.cameras["front"])
+    assert fid.psnr_db > 27.0 and fid.ssim > 0.95 and fid.pixels > 100_000
+    for sp, r in identities:
+        fid = reprojection(r.head, sp.front, r.cameras["front"], sp.masks["front"])
+        assert fid.psnr_db > 30.0 and fid.ssim > 0.95, fid
+
+
+def test_both_blends_are_the_same_spline(example):
+    _, result = example
+    layers = [im[::2, ::2] for im in result.skin.layers]
+    masks = [m[::2, ::2] for m in result.skin.masks]
+    a = blend_multiband(layers, masks, levels=4, method="opencv").astype(float)
+    b = blend_multiband(layers, masks, levels=4, method="skimage").astype(float)
+    # Different pyramid filters (OpenCV's 5-tap, scikit-image's Gaussian): close, not equal.
+    assert np.mean(np.abs(a - b)) < 3.0
+    with pytest.raises(InputError, match="unknown blend"):
+        blend_multiband(layers, masks, method="photoshop")
+
+
+def test_texture_refuses_bad_photos(example):
+    pair, result = example
+    cams = result.cameras
+    with pytest.raises(InputError, match="expected"):
+        texture_skin(result.head, pair.front[..., 0], pair.side, cams["front"], cams["side"])
+    with pytest.raises(InputError, match="too small"):
+        texture_skin(result.head, pair.front, pair.side, cams["front"], cams["side"], size=32)
+    small = fit_camera(result.head.fp_positions(), pair.fdp.views["front"].points, 1024, 1280)
+    assert small.rms_px < 10  # the orthographic fit is close but not what the photo was taken with
