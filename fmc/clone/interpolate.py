@@ -270,9 +270,12 @@ def interpolation_matrix(points: np.ndarray, depth: np.ndarray, src_space: np.nd
     corners = index.triangles[tri_of[hit]]
     w = bary[hit]
     if forbidden is not None:
-        w = np.where(forbidden[corners], 0.0, w)
+        allowed = ~forbidden[corners]
+        w = np.where(allowed, w, 0.0)
         total = w.sum(axis=1, keepdims=True)
-        w = np.divide(w, total, out=np.full_like(w, 1 / 3), where=total > 0)
+        # A point at the forbidden side of a mixed triangle: its allowed corners share it.
+        even = allowed / np.maximum(allowed.sum(axis=1, keepdims=True), 1)
+        w = np.where(total > 0, w / np.where(total > 0, total, 1.0), even)
     rows = np.repeat(owner[hit], 3)
     vals = w.ravel() * (n / len(q_all) if len(q_all) else 1.0)  # the disc's samples average
     return sparse.csr_matrix((vals, (rows, corners.ravel())), shape=(n, n_source))
