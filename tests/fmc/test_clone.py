@@ -168,6 +168,9 @@ def test_interpolation_rules():
     forbidden[1] = True
     w = interpolation_matrix(pts[:1], np.array([0.95]), space, tris, 9, height=1.0, forbidden=forbidden)
     assert np.allclose(w.toarray().ravel()[:3], [0.5 / 0.8, 0.0, 0.3 / 0.8])
+    # On the forbidden corner itself, the triangle's other corners share the point.
+    w = interpolation_matrix(np.array([[1.0, 0.0]]), np.array([1.0]), space, tris, 9, height=1.0, forbidden=forbidden)
+    assert np.allclose(w.toarray().ravel()[:3], [0.5, 0.0, 0.5])
     # Anti-aliasing averages the samples of a disc: a linear field keeps its value at the
     # centre, and each row still sums to one.
     w = interpolation_matrix(pts[:1], np.array([1.0]), space, tris, 9, height=1.0, support=0.05)
