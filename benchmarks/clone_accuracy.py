@@ -14,7 +14,9 @@ mouth socket, no eye sockets). Per test pair:
   the face, so the ground truth is ICT's delta multiplied per vertex and axis by the ratio
   of the two heads' region FAPU scales (:func:`fmc.clone.normalisation`, target over
   source); the raw delta is printed beside it;
-- the same with the target re-meshed to about a third of its skin vertices (vertex
+- the same with a Delaunay triangulation of the source's feature points instead of the
+  shipped one;
+- source → target with the target re-meshed to about a third of its skin vertices (vertex
   clustering that keeps original vertices, so the ground truth is exact there), with and
   without anti-aliasing, and the roughness of the cloned displacement field (the mean
   norm of its umbrella Laplacian over the mean norm of the field, over the face) beside
@@ -194,6 +196,12 @@ def main(argv=None) -> int:
                  raw=np.mean([pyun(there[m], shapes[m], n) for m in names]),
                  scaled=np.mean([pyun(there[m], truth[m], n) for m in names]),
                  scaled_face=np.mean([pyun(there[m], truth[m], n, NARROW_FACE) for m in names]))
+        # The same with a Delaunay triangulation of the source's feature points.
+        there_d = correspond(source, target, triangulation="delaunay").transfer(shapes)
+        back_d = correspond(Head(target.parts, target.feature_points, there_d, metadata=target.metadata), source,
+                            triangulation="delaunay").transfer(there_d)
+        r["trip_delaunay"] = np.mean([pyun(back_d[m], shapes[m], n) for m in names])
+        r["scaled_delaunay"] = np.mean([pyun(there_d[m], truth[m], n) for m in names])
         # The re-meshed target: ground truth at the kept vertices.
         coarse, kept = remesh(target)
         m_c = coarse.skin.n_vertices
@@ -212,6 +220,7 @@ def main(argv=None) -> int:
         print(f"target_{k}: round trip {r['trip']:.2f} % (narrow face {r['trip_face']:.2f} %), "
               f"vs FAPU-scaled ICT {r['scaled']:.2f} % (narrow face {r['scaled_face']:.2f} %), "
               f"vs raw ICT delta {r['raw']:.2f} %")
+        print(f"target_{k}_delaunay: round trip {r['trip_delaunay']:.2f} %, vs FAPU-scaled ICT {r['scaled_delaunay']:.2f} %")
         print(f"target_{k}_remeshed ({m_c} of {n} skin vertices): vs FAPU-scaled ICT {r['coarse_plain']:.2f} % "
               f"without anti-aliasing, {r['coarse_aa']:.2f} % with (support {r['support']:.3f}); face roughness "
               f"{r['rough_plain']:.3f} without, {r['rough_aa']:.3f} with, ground truth {r['rough_truth']:.3f}")
@@ -221,6 +230,8 @@ def main(argv=None) -> int:
     print(f"source_to_target_vs_fapu_scaled_ict_mean: {mean['scaled']:.2f} %")
     print(f"source_to_target_vs_fapu_scaled_ict_narrow_face_mean: {mean['scaled_face']:.2f} %")
     print(f"source_to_target_vs_raw_ict_mean: {mean['raw']:.2f} %")
+    print(f"delaunay_triangulation_mean: round trip {mean['trip_delaunay']:.2f} %, vs FAPU-scaled ICT "
+          f"{mean['scaled_delaunay']:.2f} %")
     print(f"remeshed_vs_fapu_scaled_ict_mean: {mean['coarse_plain']:.2f} % without anti-aliasing, "
           f"{mean['coarse_aa']:.2f} % with")
     print(f"remeshed_face_roughness_mean: {mean['rough_plain']:.3f} without anti-aliasing, {mean['rough_aa']:.3f} with, "

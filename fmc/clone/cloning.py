@@ -392,8 +392,11 @@ def clone(source: Head, target: Head, antialias: float | None = None, triangulat
                 if t.part not in s_parts or t.part not in t_of or t_of[t.part].part == "skin":
                     warnings.append(f"FAP {key[0]}: the target has no part for '{t.part}'; its {t.kind} is left out")
                     continue
-                dst = t_of[t.part]
-                moved.append(FaceDefTransform(dst.part, t.kind, dst.centre, t.axis, t.amount))
+                src, dst = s_parts[t.part], t_of[t.part]
+                # The centre kept where it is relative to the part's own (an eyeball turns
+                # about its centre; a pupil would scale about a point in front of it).
+                centre = dst.centre + (t.centre - src.centre) / src.scale * dst.scale
+                moved.append(FaceDefTransform(dst.part, t.kind, centre, t.axis, t.amount))
             transforms.add(FaceDefTable(table.fap, table.high_level, [], moved))
         fat_targets, factors = {}, {}
         for s in specs:

@@ -1,20 +1,26 @@
 """2D triangle-mesh interpolation of the source's motion at the target's points.
 
-Each target point, placed in the source's alignment space, takes the motion of the
-source triangle that holds it, by its barycentric weights [1]_:
+Each target point, placed in the source's alignment space, takes the motion of a source
+triangle by its barycentric weights [1]_:
 
 - where several projected triangles hold it (the surfaces inside the mouth, the lids
   over the eye sockets, the ears over the head) the one nearest in depth wins;
-- a point outside every triangle takes the triangle with the smallest excess of negative
-  barycentric weight (the sum of the negative weights), its weights clamped at 0 and
-  renormalised;
+- a triangle the point lies outside has its excess of negative barycentric weight
+  clamped away and the rest renormalised, and competes by the distance from the point
+  to that place on it. Measured in metres (the angle times the radius, the height times
+  the face's height, the depth) this makes one rule of Pandžić's three: inside a
+  triangle the distance is the depth difference; outside every triangle the nearest
+  wins; and a point just off its own surface (a lid's edge over the socket behind it)
+  takes that surface's motion rather than the layer it happens to lie over;
 - anti-aliasing: a point may average the motion over samples in a disc about it (a box
   filter of radius ``support`` in the alignment space), so a sparse target does not pick
   single values out of a dense source's finer detail.
 
 Points are located through a uniform grid over the triangles' bounding boxes
-(:class:`TriangleIndex`), every step vectorised over all points. The result is a sparse
-(target points × source vertices) matrix, computed once and applied to every motion.
+(:class:`TriangleIndex`); a point its own cell does not settle tries the triangles round
+its nearest source vertices. Every step is vectorised over all points. The result is a
+sparse (target points × source vertices) matrix, computed once and applied to every
+motion.
 
 References
 ----------
