@@ -21,8 +21,10 @@ The method, after Pandžić [1]_, one small function per step:
    surface takes that surface's motion, not the layer behind).
 5. Anti-aliasing: the motion averaged over a disc of samples (on by default when the
    target is sparser than the source).
-6. Lips (:func:`lip_sides`, :func:`lip_classes`): upper-lip target vertices take no
-   motion from the source's lower lip, and the other way round.
+6. Lips (:func:`lip_sides`, :func:`lip_classes`, :func:`lip_sides_on_mesh`): upper-lip
+   target vertices take no motion from the source's lower lip, and the other way round;
+   the lips' zone is a polygon of their feature points, the side within it the lip whose
+   points are nearer along the mesh.
 7. Eyes, teeth, tongue and the other parts (:func:`find_parts`): found from their feature
    points; rotations about their centres (installed when missing), translations in FAPU
    terms; the FAT's eye and head rotations re-centred on the target.
@@ -40,13 +42,13 @@ from .cloning import (ANTIALIAS_SUPPORT, REQUIRED_FPS, Correspondence, align_tar
                       correspond, lip_sides, skin_weights)
 from .interpolate import TriangleIndex, disc_samples, interpolation_matrix
 from .parts import PART_ROLES, PartRef, find_parts, rigid_motion, sphere_centre
-from .regions import LIP_FPS, lip_classes, normalisation, region_scales
+from .regions import LIP_FPS, lip_classes, lip_sides_on_mesh, normalisation, region_scales
 from .space import MOUTH_SPAN, alignment_space, cylinder_axis
 
 __all__ = [
     "clone", "clone_targets", "correspond", "Correspondence", "check_head", "REQUIRED_FPS", "ANTIALIAS_SUPPORT",
     "align_target", "lip_sides", "skin_weights",
-    "normalisation", "region_scales", "lip_classes", "LIP_FPS",
+    "normalisation", "region_scales", "lip_classes", "lip_sides_on_mesh", "LIP_FPS",
     "alignment_space", "cylinder_axis", "MOUTH_SPAN",
     "FPTriangulation", "load_fp_triangulation", "delaunay_fp_triangulation", "triangulation_for", "vertex_positions",
     "folded_triangles", "warp",

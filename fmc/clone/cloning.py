@@ -25,7 +25,8 @@ from mpeg4.head import Head, SparseDisplacement
 from .align import folded_triangles, triangulation_for, vertex_positions, warp
 from .interpolate import interpolation_matrix
 from .parts import PartRef, find_parts, part_correspondence, transfer_part_motion
-from .regions import LIP_FPS, face_scale, lip_classes, lip_vertex_classes, normalisation, region_scales
+from .regions import (LIP_FPS, face_scale, lip_classes, lip_sides_on_mesh, lip_vertex_classes, normalisation,
+                      region_scales)
 from .space import SPACE_FPS, alignment_space
 
 __all__ = ["REQUIRED_FPS", "ANTIALIAS_SUPPORT", "check_head", "Correspondence", "correspond", "align_target",
@@ -45,6 +46,9 @@ _ES0_RANGE = (0.03, 0.15)
 # Source triangles spanning more angle than this cross the back of the head (where the
 # angle wraps) or surround the axis at the crown: in the plane they would cover the face.
 _MAX_TRIANGLE_ANGLE = np.pi
+
+# How far along the mesh (in MW0) a lip's feature points claim vertices for their lip.
+_LIP_REACH = 0.5
 
 # Anti-aliasing turns itself on when the target's edges are this much longer than the
 # source's (in the alignment space, over the face).
@@ -207,7 +211,13 @@ def _in_skin(head: Head, parts: Mapping[str, PartRef]) -> np.ndarray:
 def lip_sides(source: Head, target: Head, source_space: np.ndarray, target_space: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """(N_s,) and (N_t,) lip classes of the two skins (+1 upper, −1 lower, 0 neither), each
-    by its own feature points, and a warning when they cannot be told apart."""
+    by its own feature points, and a warning when they cannot be told apart.
+
+    The lips' zone is the polygon of their feature points (:func:`lip_classes`); inside
+    it a vertex is on the lip whose feature points are nearer along the mesh
+    (:func:`lip_sides_on_mesh`; the lower lip's inner surface curls up behind the upper
+    lip, above the line where they meet), else on its side of that line.
+    """
     if not all(i in source.feature_points and i in target.feature_points for i in LIP_FPS):
         missing = [i for i in LIP_FPS if i not in source.feature_points or i not in target.feature_points]
         return (np.zeros(len(source_space)), np.zeros(len(target_space)),
@@ -215,7 +225,9 @@ def lip_sides(source: Head, target: Head, source_space: np.ndarray, target_space
     sides = []
     for head, space in ((source, source_space), (target, target_space)):
         fps = dict(zip(LIP_FPS, alignment_space(head, np.array([head.fp_position(i) for i in LIP_FPS]))))
-        sides.append(lip_vertex_classes(head, lip_classes(space, fps)))
+        zone = lip_classes(space, fps)
+        along = lip_sides_on_mesh(head, _LIP_REACH * head.fapu.MW0)
+        sides.append(lip_vertex_classes(head, np.where(zone != 0, np.where(along != 0, along, zone), 0.0)))
     return sides[0], sides[1], []
 
 

@@ -6,8 +6,9 @@ the rest of the face: x by ES0, y and z by 2·ENS0, the factors of a visage-deri
 implementation, reference section 7), so a displacement divided by the source's scales
 and multiplied by the target's is the same motion for the target's proportions [1]_.
 
-The lips are told apart by polygons of their feature points in the alignment space: the
-outer lip contour, split by the line where the lips meet.
+The lips are told apart by polygons of their feature points in the alignment space (the
+outer lip contour, split by the line where the lips meet) and, inside them, by which
+lip's feature points are nearer along the mesh.
 
 References
 ----------
@@ -24,7 +25,7 @@ from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.head import Head
 
 __all__ = ["MOUTH_REGION_FPS", "region_scales", "normalisation", "mouth_scale", "face_scale", "LIP_FPS",
-           "UPPER_LIP_FPS", "LOWER_LIP_FPS", "CORNER_FPS", "lip_classes", "lip_vertex_classes"]
+           "UPPER_LIP_FPS", "LOWER_LIP_FPS", "CORNER_FPS", "lip_sides_on_mesh", "lip_classes", "lip_vertex_classes"]
 
 #: Skin feature points of the mouth region (lips, chin and jaw, the soft cheeks, the
 #: bottom of the nose); all other skin points belong to the upper face.
@@ -100,6 +101,39 @@ def lip_vertex_classes(head: Head, classes: np.ndarray) -> np.ndarray:
             b = head.feature_points.get(i)
             if b is not None and b.part == "skin":
                 out[list(b.vertices)] = side
+    return out
+
+
+def lip_sides_on_mesh(head: Head, reach: float) -> np.ndarray:
+    """(N,) +1 / −1 for skin vertices nearer (along the mesh) to the upper / lower lip's
+    feature points, 0 beyond ``reach`` metres of both.
+
+    Along the mesh the two lips meet only at the corners (and deep in the mouth), so a
+    lip's inner surface, which curls back behind the other lip, stays with its own lip.
+    """
+    from scipy import sparse
+    from scipy.sparse.csgraph import dijkstra
+
+    skin = head.skin
+    seeds, side = [], []
+    for ids, sign in ((UPPER_LIP_FPS, 1.0), (LOWER_LIP_FPS, -1.0)):
+        for i in ids:
+            b = head.feature_points.get(i)
+            if b is not None and b.part == "skin":
+                seeds += list(b.vertices)
+                side += [sign] * len(b.vertices)
+    out = np.zeros(skin.n_vertices)
+    if not seeds:
+        return out
+    t = skin.triangles
+    e = np.unique(np.sort(np.r_[t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]], axis=1), axis=0)
+    length = np.linalg.norm(skin.vertices[e[:, 0]] - skin.vertices[e[:, 1]], axis=1)
+    graph = sparse.coo_matrix((length, (e[:, 0], e[:, 1])), shape=(skin.n_vertices,) * 2).tocsr()
+    dist, _, source = dijkstra(graph, directed=False, indices=seeds, min_only=True, return_predecessors=True,
+                               limit=reach)
+    sign_of = dict(zip(seeds, side))
+    near = np.isfinite(dist)
+    out[near] = [sign_of[int(k)] for k in source[near]]
     return out
 
 
