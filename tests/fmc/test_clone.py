@@ -248,8 +248,9 @@ def test_antialiasing_takes_the_roughness_out_of_dense_to_sparse(bench, identity
                                   for m in names])
     rough_truth = np.mean([bench.roughness(truth[m]["skin"].dense(source.skin.n_vertices)[kept],
                                            coarse.skin.triangles, face) for m in names])
-    assert rough[None] < rough[0.0]
-    assert rough[None] < 1.02 * rough_truth < rough[0.0]
+    # Without the filter the field is rougher than the truth's (measured 0.145 against
+    # 0.141); with it, no rougher than the truth (0.136).
+    assert rough[0.0] > rough_truth > rough[None]
 
 
 def _angle(r):
