@@ -57,10 +57,11 @@ __all__ = ["FEATURE_LINE", "REGIONS", "FeatureLineWarp", "SkinTexture", "feature
            "seam_band", "seam_gradient", "photo_background", "texture_skin", "textured_head"]
 
 #: The feature points of the feature line on the face's left, from the top of the skull to
-#: the angle of the jaw (Lee et al.); below the jaw the line follows the neck's outline in
-#: the front view (:func:`feature_line`). The right line is the mirror image.
+#: the angle of the jaw (Lee et al.); below the jaw the line runs down the neck where it
+#: faces half way between the photos (:func:`feature_line`). The right line is the mirror
+#: image.
 FEATURE_LINE = ("11.4", "11.3", "4.5", "10.9", "10.7", "2.13")
-_NECK_STEP = 0.01  # metres between the neck outline's points
+_NECK_STEP = 0.01  # metres between the neck line's points
 
 #: Texture regions of the skin: which layer a triangle samples.
 REGIONS = ("front", "seen side", "mirrored side", "hidden", "fold")
@@ -89,10 +90,10 @@ def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, 
     """The feature line of one side of the face, top to bottom.
 
     Its feature points (:data:`FEATURE_LINE`, mirrored for ``"R"``) and, below the angle of
-    the jaw, the neck's outline seen from the front: at every :data:`_NECK_STEP` down to
-    the bottom of the skin, the widest point of the skin's cross-section on that side. The
-    front photo sees the neck squarely, so the line hands it the neck's front; the side
-    photos keep what lies behind.
+    the jaw, a line down the neck: at every :data:`_NECK_STEP` down to the bottom of the
+    skin, the point of the skin's cross-section (its convex outline) that faces half way
+    between the front and the side, where both photos see the neck at 45°. The front photo
+    gets the neck's front, the side photos what lies behind.
 
     Returns
     -------
@@ -111,12 +112,20 @@ def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, 
     v = np.asarray(skin_vertices, float)
     heights = np.arange(fps[-1, 1] - _NECK_STEP, v[:, 1].min() + 0.004, -_NECK_STEP)
     neck = []
+    from scipy.spatial import ConvexHull
+
     for y, xz in zip(heights, _sections(v, skin_triangles, heights)):
-        on_side = xz[xz[:, 0] * sign > 0]
-        if len(on_side) < 3:
+        if (xz[:, 0] * sign > 0).sum() < 3:
             break
-        k = int(np.argmax(on_side[:, 0] * sign))
-        neck.append([on_side[k, 0], y, on_side[k, 1]])
+        try:
+            hull = xz[ConvexHull(xz).vertices]
+        except Exception:  # a degenerate section: the line ends here
+            break
+        # The outline's point that faces half way between the two cameras (its support
+        # point along the 45° direction): both photos see the neck there at 45°, not the
+        # front one at a grazing angle.
+        k = int(np.argmax(hull @ np.array([sign, 1.0])))
+        neck.append([hull[k, 0], y, hull[k, 1]])
     points = np.vstack([fps, np.array(neck).reshape(-1, 3)])
     return points, np.r_[np.ones(len(fps), bool), np.zeros(len(neck), bool)]
 
@@ -148,8 +157,7 @@ def _visible(points: np.ndarray, cam: Camera, depth: np.ndarray) -> np.ndarray:
 # Extra directions (yaw, pitch in degrees) from which a vertex may be seen, to tell the
 # inside of the mouth and the eye sockets (seen from nowhere) from surfaces the photos
 # merely miss (behind the ears, under the chin).
-_AROUND = ((180.0, 0.0), (135.0, 0.0), (-135.0, 0.0), (0.0, 70.0), (90.0, 50.0), (-90.0, 50.0), (0.0, -60.0),
-           (45.0, 0.0), (-45.0, 0.0))
+_AROUND = ((180.0, 0.0), (135.0, 0.0), (-135.0, 0.0), (0.0, 70.0), (0.0, -60.0), (45.0, 0.0), (-45.0, 0.0))
 
 
 def _seen_from_around(head: Head, points: np.ndarray, size: int = 384) -> np.ndarray:
@@ -571,7 +579,9 @@ def _sections(vertices: np.ndarray, triangles: np.ndarray, heights: np.ndarray) 
     """For each height, the (K, 2) (x, z) points where the mesh's edges cross the plane
     y = height (the cross-section's outline, unordered)."""
     tri = np.asarray(triangles)
-    edges = np.unique(np.sort(np.r_[tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]], axis=1), axis=0)
+    # Every triangle's three edges; an edge shared by two triangles gives its crossing twice,
+    # which neither a hull nor a widest point minds (and saves sorting the edges).
+    edges = np.r_[tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]
     a, b = vertices[edges[:, 0]], vertices[edges[:, 1]]
     lo, hi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
     out = []
@@ -801,10 +811,21 @@ def photo_background(photo: np.ndarray, tol: float = 14.0, border: int = 6) -> n
     return np.isin(labels, touching) & close
 
 
-def _head_meshes(head: Head):
-    from mpeg4.preview import head_meshes
+def _fill_outside(photo: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """The photo with what lies outside ``valid`` filled from inside (push–pull at half
+    resolution, which is all a smooth fill needs; the valid pixels keep their values)."""
+    h, w = valid.shape
+    half = cv2.resize(photo, ((w + 1) // 2, (h + 1) // 2), interpolation=cv2.INTER_AREA)
+    vhalf = cv2.resize(valid.astype(np.uint8), ((w + 1) // 2, (h + 1) // 2), interpolation=cv2.INTER_NEAREST) > 0
+    filled = cv2.resize(fill_empty(half, vhalf), (w, h), interpolation=cv2.INTER_LINEAR)
+    return np.where(valid[..., None], photo, filled)
 
-    return head_meshes(head)
+
+def _head_meshes(head: Head):
+    """The head's parts for depth renders only: no textures to upload, no normals to compute."""
+    from mpeg4.render import RenderMesh
+
+    return [RenderMesh(p.vertices, p.triangles, normals=np.zeros_like(p.vertices)) for p in head.parts.values()]
 
 
 def _depth(meshes, cam: Camera) -> np.ndarray:
@@ -924,10 +945,10 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
         if not head_mask.any():
             raise InputError(f"the head does not show in the {key} photo", where="texture",
                              fix="check the feature points of that photo")
-        fill[key] = fill_empty(photo, head_mask)
+        fill[key] = _fill_outside(photo, head_mask)
     layers = [cv2.warpAffine(fill["front"], A[:2], (size, size), flags=cv2.INTER_LINEAR,
                              borderMode=cv2.BORDER_REPLICATE)]
-    grid = max(1, size // 512)  # the warps are piecewise affine: a coarse map, linearly refined
+    grid = max(1, size // 256)  # the warps are piecewise affine: a coarse map, linearly refined
     coarse = (int(np.ceil(size / grid)) + 1,) * 2
     G = np.linalg.inv(A) @ np.diag([grid, grid, 1.0])  # coarse grid pixel → composite pixel
     for photo in (fill["side"], np.ascontiguousarray(fill["side"][:, ::-1])):
