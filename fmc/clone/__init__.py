@@ -39,7 +39,7 @@ References
 from .align import (FPTriangulation, delaunay_fp_triangulation, folded_triangles, load_fp_triangulation,
                     triangulation_for, vertex_positions, warp)
 from .cloning import (ANTIALIAS_SUPPORT, REQUIRED_FPS, Correspondence, align_target, check_head, clone, clone_targets,
-                      correspond, lip_sides, skin_weights)
+                      correspond, lip_sides, pin_feature_points, skin_weights)
 from .interpolate import TriangleIndex, disc_samples, interpolation_matrix
 from .parts import PART_ROLES, PartRef, find_parts, rigid_motion, sphere_centre
 from .regions import LIP_FPS, lip_classes, lip_sides_on_mesh, normalisation, region_scales
@@ -47,7 +47,7 @@ from .space import MOUTH_SPAN, alignment_space, cylinder_axis
 
 __all__ = [
     "clone", "clone_targets", "correspond", "Correspondence", "check_head", "REQUIRED_FPS", "ANTIALIAS_SUPPORT",
-    "align_target", "lip_sides", "skin_weights",
+    "align_target", "lip_sides", "skin_weights", "pin_feature_points",
     "normalisation", "region_scales", "lip_classes", "lip_sides_on_mesh", "LIP_FPS",
     "alignment_space", "cylinder_axis", "MOUTH_SPAN",
     "FPTriangulation", "load_fp_triangulation", "delaunay_fp_triangulation", "triangulation_for", "vertex_positions",

@@ -24,13 +24,13 @@ from mpeg4.head import Head, SparseDisplacement
 
 from .align import folded_triangles, triangulation_for, vertex_positions, warp
 from .interpolate import interpolation_matrix
-from .parts import PartRef, find_parts, part_correspondence, transfer_part_motion
+from .parts import PartRef, feature_point_pins, find_parts, part_correspondence, transfer_part_motion
 from .regions import (LIP_FPS, face_scale, lip_classes, lip_sides_on_mesh, lip_vertex_classes, normalisation,
                       region_scales)
 from .space import SPACE_FPS, alignment_space
 
 __all__ = ["REQUIRED_FPS", "ANTIALIAS_SUPPORT", "check_head", "Correspondence", "correspond", "align_target",
-           "lip_sides", "skin_weights", "clone_targets", "clone"]
+           "lip_sides", "skin_weights", "pin_feature_points", "clone_targets", "clone"]
 
 #: Feature points the method cannot do without: the FAPU and the alignment space.
 REQUIRED_FPS = tuple(sorted({p for d in FAPU_DEFINITIONS.values() for p in (d.first, d.second)} | set(SPACE_FPS),
@@ -191,8 +191,8 @@ def correspond(source: Head, target: Head, antialias: float | None = None, trian
         sparser = _median_edge(t_space, target.skin.triangles) / _median_edge(s_space, source.skin.triangles)
         antialias = ANTIALIAS_SUPPORT if sparser > _SPARSER else 0.0
     # 4. Interpolation.
-    skin = skin_weights(source, s_space, aligned, depth, s_lip, t_lip, _in_skin(source, s_parts),
-                        _in_skin(target, t_parts), antialias)
+    skin = pin_feature_points(skin_weights(source, s_space, aligned, depth, s_lip, t_lip, _in_skin(source, s_parts),
+                                           _in_skin(target, t_parts), antialias), source, target)
     pairs = [(s, t_parts[k], part_correspondence(source, s, target, t_parts[k]))
              for k, s in s_parts.items() if k in t_parts]
     unmatched = {s_parts[k].part for k in set(s_parts) - set(t_parts) if s_parts[k].part != "skin"}
@@ -229,6 +229,18 @@ def lip_sides(source: Head, target: Head, source_space: np.ndarray, target_space
         along = lip_sides_on_mesh(head, _LIP_REACH * head.fapu.MW0)
         sides.append(lip_vertex_classes(head, np.where(zone != 0, np.where(along != 0, along, zone), 0.0)))
     return sides[0], sides[1], []
+
+
+def pin_feature_points(weights: sparse.csr_matrix, source: Head, target: Head) -> sparse.csr_matrix:
+    """``weights`` with the target skin's feature points taking the source's exactly (the
+    points are known to correspond; those between the triangulation's vertices, such as
+    the inner lips and the chin boss, would otherwise miss by a little). See
+    :func:`fmc.clone.parts.feature_point_pins`."""
+    out = sparse.lil_matrix(weights)
+    for v, cols in feature_point_pins(source, target, "skin", "skin").items():
+        out.rows[v] = sorted(cols)
+        out.data[v] = [cols[c] for c in sorted(cols)]
+    return out.tocsr()
 
 
 def skin_weights(source: Head, source_space: np.ndarray, aligned: np.ndarray, depth: np.ndarray,

@@ -31,7 +31,7 @@ from mpeg4.head import Head
 from .regions import face_scale, mouth_scale, region_scales
 
 __all__ = ["PART_ROLES", "PartRef", "find_parts", "sphere_centre", "rigid_motion", "part_correspondence",
-           "transfer_part_motion"]
+           "feature_point_pins", "transfer_part_motion"]
 
 #: Role → the feature points that find it (first present wins).
 PART_ROLES = {
@@ -197,8 +197,8 @@ def part_correspondence(source: Head, s: PartRef, target: Head, t: PartRef, k: i
     """(k_t, k_s) weights taking values on the source part's vertices to the target's:
     inverse-distance over the ``k`` nearest, each part's vertices taken about their
     centroid and divided by their spread along each axis (so two eyeballs, or two
-    tongues, of different sizes and places meet point for point); a target vertex that is
-    a feature point of both parts takes the source point's place exactly."""
+    tongues, of different sizes and places meet point for point); feature points on both
+    parts are pinned (:func:`feature_point_pins`)."""
 
     def normalised(p):
         return (p - p.mean(axis=0)) / np.maximum(p.std(axis=0), 1e-12)
@@ -214,23 +214,39 @@ def part_correspondence(source: Head, s: PartRef, target: Head, t: PartRef, k: i
     w /= w.sum(axis=1, keepdims=True)
     rows = np.repeat(np.arange(len(pt)), k)
     out = sparse.lil_matrix(sparse.csr_matrix((w.ravel(), (rows, near.ravel())), shape=(len(pt), len(ps))))
-    # Feature points on both parts are known to correspond: their vertices take the
-    # source point's motion exactly.
     s_at = {int(v): k for k, v in enumerate(s.vertices)}
     t_at = {int(v): k for k, v in enumerate(t.vertices)}
+    for v, cols in feature_point_pins(source, target, s.part, t.part).items():
+        if v in t_at and all(c in s_at for c in cols):
+            out.rows[t_at[v]] = sorted(s_at[c] for c in cols)
+            out.data[t_at[v]] = [cols[c] for c in sorted(cols, key=s_at.get)]
+    return out.tocsr()
+
+
+def feature_point_pins(source: Head, target: Head, source_part: str, target_part: str) -> dict[int, dict[int, float]]:
+    """Target vertex → {source vertex: weight} making the feature points on both parts
+    correspond exactly.
+
+    A target point bound to one vertex takes the source point's combination of vertices.
+    A point bound alike on both heads (as many vertices, the same weights: heads made from
+    one generic head) is pinned vertex by vertex, which keeps each vertex's own motion; in
+    any order the point itself moves as the source's. Other bindings are left alone (one
+    value spread over several vertices would flatten the motion there).
+    """
+    pins: dict[int, dict[int, float]] = {}
     for fp, b in target.feature_points.items():
         a = source.feature_points.get(fp)
-        if a is None or b.part != t.part or a.part != s.part or len(b.vertices) != 1:
-            continue  # (a point between target vertices would spread one value over them)
-        if not all(v in t_at for v in b.vertices) or not all(v in s_at for v in a.vertices):
+        if a is None or a.part != source_part or b.part != target_part:
             continue
-        cols = {}
-        for u, wt in zip(a.vertices, a.weights):
-            cols[s_at[u]] = cols.get(s_at[u], 0.0) + wt
-        v = t_at[b.vertices[0]]
-        out.rows[v] = sorted(cols)
-        out.data[v] = [cols[c] for c in sorted(cols)]
-    return out.tocsr()
+        if len(b.vertices) == 1:
+            cols: dict[int, float] = {}
+            for u, w in zip(a.vertices, a.weights):
+                cols[int(u)] = cols.get(int(u), 0.0) + w
+            pins[int(b.vertices[0])] = cols
+        elif len(a.vertices) == len(b.vertices) and np.allclose(a.weights, b.weights, atol=1e-9):
+            for u, v in zip(a.vertices, b.vertices):
+                pins[int(v)] = {int(u): 1.0}
+    return pins
 
 
 def transfer_part_motion(source_points: np.ndarray, displacement: np.ndarray, s: PartRef, target_points: np.ndarray,
