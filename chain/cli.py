@@ -52,15 +52,20 @@ def clone_cmd(source: Path = typer.Option(..., "--source", help="Head with motio
               target: Path = typer.Option(..., "--target", help="Head to clone onto: with feature points (a GLB of "
                                                                 "this project, or a mesh with its MESH.fdp.json), or "
                                                                 "any head mesh, marked first (fmc mark)."),
-              out: Path = typer.Option(..., "-o", "--out", help="Target with the cloned motion (.glb).")) -> None:
-    """Clone morph targets and Facial Animation Tables from one head onto another (work in progress:
-    exact on itself; see the README for the measured accuracy). A target without feature points is
-    marked first, with a warning that its points are unreviewed."""
+              out: Path = typer.Option(..., "-o", "--out", help="Target with the cloned motion (.glb)."),
+              antialias: float = typer.Option(
+                  None, help="Radius of the anti-aliasing disc in the alignment space (0: none; default: 0.02 when "
+                             "the target is sparser than the source)."),
+              triangulation: str = typer.Option("mpeg4", help="Feature-point triangulation: mpeg4 (shipped) or "
+                                                              "delaunay.")) -> None:
+    """Clone morph targets and Facial Animation Tables from one head onto another (Pandzic's
+    Facial Motion Cloning; see the README for the measured accuracy). A target without feature
+    points is marked first (fmc mark), with a warning that its points are unreviewed."""
     from mpeg4.io import save_head
 
     from .clone import clone_onto
 
-    head, warnings = clone_onto(source, target, progress=_say)
+    head, warnings = clone_onto(source, target, progress=_say, antialias=antialias, triangulation=triangulation)
     for w in warnings:
         _say(f"warning: {w}")
     typer.echo(save_head(head, out))

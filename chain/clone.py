@@ -49,8 +49,10 @@ def target_head(path, detect=None, progress=None) -> tuple[Head, list[str]]:
     return result.head, warnings + [f"{name}: {w}" for w in result.warnings]
 
 
-def clone_onto(source, target, detect=None, progress=None) -> tuple[Head, list[str]]:
+def clone_onto(source, target, detect=None, progress=None, **options) -> tuple[Head, list[str]]:
     """:func:`fmc.clone.clone` of a head file onto another, marking the target if needed.
+
+    ``options`` go to :func:`fmc.clone.clone` (``antialias``, ``triangulation``).
 
     Returns
     -------
@@ -62,5 +64,5 @@ def clone_onto(source, target, detect=None, progress=None) -> tuple[Head, list[s
     from mpeg4.io import load_head
 
     tgt, warnings = target_head(target, detect=detect, progress=progress)
-    head, more = clone(load_head(source), tgt)
+    head, more = clone(load_head(source), tgt, **options)
     return head, warnings + more
