@@ -67,7 +67,7 @@ MIN_POINTS = 12
 
 _HEAD_SIZE = 0.3  # metres: a head with some neck, for choosing the unit
 _NOSE_CAP = 0.015  # metres: depth of the cap in which the nose ends
-_SLICE = 0.08  # metres beyond the nose: the skull above, the neck (or nothing) below
+_SLICE = 0.105  # metres beyond the nose: the forehead and skull above, under the chin below
 _NOT_A_NOSE = 0.8  # a narrowest end at least this share of the next one is no nose
 _SKIN, _WHITE, _PINK = (0.86, 0.68, 0.56), (0.92, 0.92, 0.9), (0.75, 0.4, 0.42)
 _MIRRORED = {i: fp.mirror for i, fp in FEATURE_POINTS.items() if fp.mirror}
@@ -192,6 +192,9 @@ class Frame:
         The file axes nearest the head's up and the face's forward direction (``"+z"`` ...).
     notes : list of str
         What was detected, given or assumed, one sentence each.
+    nose : (3,) float64 or None
+        Where the surface ends in the nose, neutral frame (the renders frame the head
+        around it).
     """
 
     rotation: np.ndarray
@@ -201,6 +204,7 @@ class Frame:
     up: str
     forward: str
     notes: list[str] = field(default_factory=list)
+    nose: np.ndarray | None = None
 
     @property
     def matrix(self) -> np.ndarray:
@@ -222,8 +226,9 @@ class Frame:
         """This frame followed by ``x -> rotation @ x + offset`` in the neutral frame."""
         r = rotation @ self.rotation
         notes = self.notes + ([note] if note else [])
+        nose = None if self.nose is None else rotation @ self.nose + offset
         return Frame(r, self.scale, rotation @ self.offset + offset, self.unit, _axis_name(r[1]), _axis_name(r[2]),
-                     notes)
+                     notes, nose)
 
 
 def _mirror_residual(points: np.ndarray, normal: np.ndarray, tree) -> tuple[float, float]:
@@ -356,26 +361,33 @@ def estimate_frame(head: Head, unit: str | None = None, up: str | None = None, f
     else:
         u = np.cross(f, lateral)  # either sign; decided below
         u /= np.linalg.norm(u)
-        # A hand's breadth above the nose the slice crosses the skull; below it, the neck
-        # (or nothing): the deeper side is up.
+        # A hand's breadth above the nose the slice crosses the forehead and the skull: it
+        # comes near the front and is deep; below, it crosses under the chin (the neck, or
+        # nothing): far behind the nose and shallow.
         tip = pts[np.argmax(pts @ f)]
-        depth = []
+        score, said = [], []
         for sgn in (1.0, -1.0):
             h = (pts - tip) @ (sgn * u)
             band = pts[np.abs(h - _SLICE) < 0.01]
-            depth.append(0.0 if len(band) < 5 else float(np.ptp(band @ f)))
-        if depth[1] > depth[0]:
-            u = -u
-        hi, lo = max(depth), min(depth)
-        notes.append(f"up: {_axis_name(u)} (detected: {_SLICE * 100:.0f} cm above the nose the head is "
-                     f"{hi * 100:.1f} cm deep, {_SLICE * 100:.0f} cm below it {lo * 100:.1f} cm)")
+            if len(band) < 5:
+                score.append(-np.inf)
+                said.append("nothing")
+                continue
+            depth, gap = float(np.ptp(band @ f)), float(tip @ f - (band @ f).max())
+            score.append(depth - gap)
+            said.append(f"{depth * 100:.1f} cm deep, its front {gap * 100:.1f} cm behind the nose")
+        if score[1] > score[0]:
+            u, said = -u, said[::-1]
+        notes.append(f"up: {_axis_name(u)} (detected: {_SLICE * 100:.1f} cm above the nose the head is {said[0]}; "
+                     f"below it {said[1]})")
     left = np.cross(u, f)
     rot = np.stack([left, u, f])
     # The mirror plane at x = 0 (the plane's offset is along the lateral axis, which is
     # +-left); the rest centred on the samples.
     offset = -rot @ centre
     offset[0] = -(plane + centre @ lateral) * (left @ lateral)
-    frame = Frame(rot, s, offset, unit, _axis_name(u), _axis_name(f), notes)
+    tip = pts[np.argmax(pts @ f)]
+    frame = Frame(rot, s, offset, unit, _axis_name(u), _axis_name(f), notes, rot @ (tip + centre) + offset)
     frame.notes.append(f"mirror plane found {res * 1000:.1f} mm from symmetric (mean)")
     return frame
 
@@ -460,7 +472,8 @@ class Views:
     frame: np.ndarray
 
 
-def render_views(head: Head, folder, size: int = 1024, frame: np.ndarray | None = None) -> Views:
+def render_views(head: Head, folder, size: int = 1024, frame: np.ndarray | None = None,
+                 focus: np.ndarray | None = None) -> Views:
     """Front and left-side renders of a head in the neutral frame, written as PNGs to ``folder``.
 
     Orthographic, lit from above the viewer's left shoulder; untextured parts in the
@@ -476,6 +489,9 @@ def render_views(head: Head, folder, size: int = 1024, frame: np.ndarray | None 
         Image height in pixels (the width is 4/5 of it, like a portrait photo).
     frame : (4, 4) float, optional
         File → neutral similarity the head was moved by (kept in the result).
+    focus : (3,) float, optional
+        The nose tip, neutral frame: the views frame the head from 13 cm below it to 15 cm
+        above (not the shoulders); everything when None.
     """
     from PIL import Image
 
@@ -491,6 +507,9 @@ def render_views(head: Head, folder, size: int = 1024, frame: np.ndarray | None 
             m.colour = (_WHITE if name.startswith(("eye", "teeth")) else _PINK if name.startswith("tongue")
                         else _SKIN)
     allv = np.concatenate([p.vertices for p in head.parts.values()])
+    if focus is not None:
+        near = allv[(allv[:, 1] > focus[1] - 0.13) & (allv[:, 1] < focus[1] + 0.15)]
+        allv = near if len(near) >= 100 else allv
     out = Views({}, {}, {}, {}, np.eye(4) if frame is None else np.asarray(frame, dtype=np.float64))
     w = int(round(size * 0.8))
     for name, yaw in (("front", 0.0), ("side", 90.0)):
@@ -509,14 +528,20 @@ def landmark_detector() -> Callable[[Views], FdpFile]:
     Raises
     ------
     InputError
-        When recon.landmarks is not installed (or cannot load what it needs).
+        When recon.landmarks is not installed, or the models it runs (mediapipe) are not.
     """
+    import importlib
+
     from .annotate.placement import detector
 
     detect, why = detector()
     if detect is None:
         raise InputError(f"no 2D landmark detector: {why}", where="fmc mark",
-                         fix="install the landmark extra, or place the points by hand: recon annotate MESH")
+                         fix="run bash install.sh, or place the points by hand: recon annotate MESH")
+    available = getattr(importlib.import_module("recon.landmarks"), "mediapipe_available", None)
+    if available is not None and not available():
+        raise InputError("no 2D landmark detector: recon.landmarks needs mediapipe, which is not installed",
+                         where="fmc mark", fix="run bash install.sh, or place the points by hand: recon annotate MESH")
 
     def run(views: Views) -> FdpFile:
         return detect(os.fspath(views.paths["front"]), os.fspath(views.paths["side"]))
@@ -1032,6 +1057,15 @@ class Marking:
         return {i: h.confidence for i, h in self.hits.items()}
 
 
+def _detect(detect, views: Views, name: str, where: str) -> FdpFile:
+    """The detector on the renders; what it says of a render is said of the mesh."""
+    try:
+        return detect(views)
+    except InputError as e:
+        raise InputError(f"no face found in the renders ({name}: {e.what})", where=where,
+                         fix="check that the mesh is a head; give --up and --forward if its axes are unusual") from None
+
+
 def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | None = None, up: str | None = None,
          forward: str | None = None, size: int = 1024, passes: int = 2, progress: Callable[[str], None] | None = None,
          where: str | None = None) -> Marking:
@@ -1081,9 +1115,20 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
         head = place_mesh(raw, frame.matrix, None, where)
         for k in range(max(1, passes)):
             say(f"rendering the front and side views ({'first' if k == 0 else 'turned'} frame)")
-            views = render_views(head, tmp, size, frame.matrix)
+            views = render_views(head, tmp, size, frame.matrix, frame.nose)
             say(f"finding the points in the renders ({name})")
-            found = detect(views)
+            try:
+                found = _detect(detect, views, name, where)
+            except InputError:
+                if k > 0 or up is not None:
+                    raise
+                # Upside down? A detector finds no face then: turn the head over once.
+                say("no face found: trying the head the other way up")
+                frame = frame.turned(np.diag([-1.0, -1.0, 1.0]), np.zeros(3),
+                                     "turned over: no face was found the other way up")
+                head = place_mesh(raw, frame.matrix, None, where)
+                views = render_views(head, tmp, size, frame.matrix, frame.nose)
+                found = _detect(detect, views, name, where)
             n_front = len(found.views.get("front").points) if "front" in found.views else 0
             if n_front < MIN_POINTS:
                 raise InputError(f"no face found in the front render ({n_front} points, {name})", where=where,
@@ -1097,8 +1142,8 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
         say("finding the eyes, teeth and tongue")
         parts, part_notes = find_parts(head, hits)
         head = place_mesh(raw, frame.matrix, parts, where)
-        views = render_views(head, tmp, size, frame.matrix)
-        found = detect(views)
+        views = render_views(head, tmp, size, frame.matrix, frame.nose)
+        found = _detect(detect, views, name, where)
     surface = _Surface(head)
     hits = lift(head, views, found, surface)
     hits = hidden_points(head, hits, surface=surface)

@@ -164,8 +164,6 @@ def test_place_mesh_regroups_and_moves(tmp_path):
 
 
 def test_cli_errors(meshes, tmp_path):
-    import importlib.util
-
     from chain.cli import app
 
     path = _mesh_file(tmp_path, trimesh.creation.box((0.2, 0.2, 0.2)).subdivide().subdivide(), "box.obj")
@@ -173,6 +171,30 @@ def test_cli_errors(meshes, tmp_path):
     assert all(c in help_text for c in ("mark", "clone", "author", "info"))
     out = CliRunner().invoke(app, ["mark", str(path), "--up", "+q"])
     assert isinstance(out.exception, InputError) and "unknown axis '+q' for --up" in str(out.exception)
-    if importlib.util.find_spec("recon.landmarks") is None:
+    if not _detector_available():
         out = CliRunner().invoke(app, ["mark", str(meshes["ply"].path)])
         assert "no 2D landmark detector" in str(out.exception) and "recon annotate" in str(out.exception)
+
+
+def _detector_available() -> bool:
+    from recon.mark3d import landmark_detector
+
+    try:
+        landmark_detector()
+    except InputError:
+        return False
+    return True
+
+
+@pytest.mark.slow
+def test_the_photo_detector_on_the_renders(meshes):
+    """The final code path: recon.landmarks.detect on the renders of an untextured mesh."""
+    if not _detector_available():
+        pytest.skip("recon.landmarks or mediapipe is not installed")
+    mf = meshes["ply"]
+    result = mark(mf.path)
+    assert result.fdp.metadata["mark3d"]["detector"] == "recon.landmarks.detect"
+    err = _errors_mm(result, mf)
+    eyes_nose_mouth = [err[i] for i in ("3.5", "3.6", "3.7", "3.12", "9.3", "8.3", "8.4", "2.2", "9.15") if i in err]
+    assert len(eyes_nose_mouth) == 9 and np.median(eyes_nose_mouth) < 4.0
+    assert (result.frame.unit, result.frame.up, result.frame.forward) == (mf.unit, mf.up, mf.forward)
