@@ -68,6 +68,7 @@ MIN_POINTS = 12
 _HEAD_SIZE = 0.3  # metres: a head with some neck, for choosing the unit
 _NOSE_CAP = 0.015  # metres: depth of the cap in which the nose ends
 _SLICE = 0.105  # metres beyond the nose: the forehead and skull above, under the chin below
+_CLOSE_CALL = 0.03  # metres: up scores nearer than this leave it to the feature points
 _NOT_A_NOSE = 0.8  # a narrowest end at least this share of the next one is no nose
 _SKIN, _WHITE, _PINK = (0.86, 0.68, 0.56), (0.92, 0.92, 0.9), (0.75, 0.4, 0.42)
 _MIRRORED = {i: fp.mirror for i, fp in FEATURE_POINTS.items() if fp.mirror}
@@ -195,6 +196,8 @@ class Frame:
     nose : (3,) float64 or None
         Where the surface ends in the nose, neutral frame (the renders frame the head
         around it).
+    close_call : bool
+        Up was detected on weak evidence: :func:`mark` lets the feature points decide.
     """
 
     rotation: np.ndarray
@@ -205,6 +208,7 @@ class Frame:
     forward: str
     notes: list[str] = field(default_factory=list)
     nose: np.ndarray | None = None
+    close_call: bool = False
 
     @property
     def matrix(self) -> np.ndarray:
@@ -376,6 +380,7 @@ def estimate_frame(head: Head, unit: str | None = None, up: str | None = None, f
             depth, gap = float(np.ptp(band @ f)), float(tip @ f - (band @ f).max())
             score.append(depth - gap)
             said.append(f"{depth * 100:.1f} cm deep, its front {gap * 100:.1f} cm behind the nose")
+        close = abs(score[0] - score[1]) < _CLOSE_CALL
         if score[1] > score[0]:
             u, said = -u, said[::-1]
         notes.append(f"up: {_axis_name(u)} (detected: {_SLICE * 100:.1f} cm above the nose the head is {said[0]}; "
@@ -387,7 +392,8 @@ def estimate_frame(head: Head, unit: str | None = None, up: str | None = None, f
     offset = -rot @ centre
     offset[0] = -(plane + centre @ lateral) * (left @ lateral)
     tip = pts[np.argmax(pts @ f)]
-    frame = Frame(rot, s, offset, unit, _axis_name(u), _axis_name(f), notes, rot @ (tip + centre) + offset)
+    frame = Frame(rot, s, offset, unit, _axis_name(u), _axis_name(f), notes, rot @ (tip + centre) + offset,
+                  given_up is None and close)
     frame.notes.append(f"mirror plane found {res * 1000:.1f} mm from symmetric (mean)")
     return frame
 
@@ -1057,6 +1063,29 @@ class Marking:
         return {i: h.confidence for i, h in self.hits.items()}
 
 
+def _face_misfit(hits: Mapping[str, Hit]) -> float:
+    """RMS distance (m) of the points from the generic head's after the best similarity
+    (scaled to the generic head's size); infinite with too few points or eyes below the mouth."""
+    from mpeg4.generic_head import load_generic_head
+
+    if _upside_down(hits):
+        return np.inf
+    g = load_generic_head().fp_positions()
+    ids = [i for i, h in hits.items() if i in g and h.confidence > 0 and FEATURE_POINTS[i].group not in (6, 7)]
+    if len(ids) < 6:
+        return np.inf
+    p, q = np.array([hits[i].point for i in ids]), np.array([g[i] for i in ids])
+    r, t, s = _umeyama(p, q, np.ones(len(ids)))
+    return float(np.sqrt(np.mean(np.sum((s * p @ r.T + t - q) ** 2, axis=1))))
+
+
+def _upside_down(hits: Mapping[str, Hit]) -> bool:
+    """Whether the eyes were found below the mouth."""
+    eyes = [hits[i].point[1] for i in ("3.5", "3.6", "3.7", "3.12") if i in hits]
+    mouth = [hits[i].point[1] for i in ("8.3", "8.4", "8.1", "8.2") if i in hits]
+    return bool(eyes and mouth and np.mean(eyes) < np.mean(mouth))
+
+
 def _detect(detect, views: Views, name: str, where: str) -> FdpFile:
     """The detector on the renders; what it says of a render is said of the mesh."""
     try:
@@ -1135,6 +1164,23 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
                                  fix="check that the mesh is a head; give --up and --forward if its axes are unusual")
             surface = _Surface(head)
             hits = lift(head, views, found, surface)
+            if k == 0 and (frame.close_call or _upside_down(hits)):
+                # Up was a close call (or the eyes came out below the mouth): look at the head
+                # the other way up too, and keep the way the points sit more like a face's.
+                say("up is uncertain: looking at the head the other way up too")
+                other = frame.turned(np.diag([-1.0, -1.0, 1.0]), np.zeros(3),
+                                     "turned over: the points sit more like a face's that way up")
+                o_head = place_mesh(raw, other.matrix, None, where)
+                o_views = render_views(o_head, tmp, size, other.matrix, other.nose)
+                try:
+                    o_found = _detect(detect, o_views, name, where)
+                except InputError:
+                    o_found = None
+                if o_found is not None:
+                    o_surface = _Surface(o_head)
+                    o_hits = lift(o_head, o_views, o_found, o_surface)
+                    if _face_misfit(o_hits) < _face_misfit(hits):
+                        frame, head, views, found, surface, hits = other, o_head, o_views, o_found, o_surface, o_hits
             if k + 1 < max(1, passes):
                 frame, angle = refine_frame(frame, {i: h.point for i, h in hits.items()},
                                             {i: h.confidence for i, h in hits.items()})
@@ -1164,7 +1210,8 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
         fapu = head.fapu
     except InputError as e:
         warnings.append(f"FAPU not measurable: {e.what}")
-    notes = frame.notes + part_notes
+    notes = frame.notes + [f"frame: the file's unit is {frame.unit}, its up axis {frame.up}, the face looks along "
+                           f"{frame.forward}"] + part_notes
     missing = [i for i in FP_IDS if i not in bindings]
     if missing:
         warnings.append(f"not placed: {', '.join(missing)}")
