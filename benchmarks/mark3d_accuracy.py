@@ -109,7 +109,8 @@ def main(argv=None) -> int:
     print(f"triangles_median: {np.median(faces):.0f}")
     print(f"time_per_mesh: {np.median(times):.2f} s")
     ok = np.median(lm) <= 2.0 and np.median(rest) <= 4.0 and not failed
-    print(f"summary: {done} of {args.identities} re-meshed identities marked, {which} detector: median {np.median(lm):.2f} mm on "
+    print(f"summary: {done} of {args.identities} re-meshed identities marked, {which} detector: "
+          f"median {np.median(lm):.2f} mm on "
           f"landmark-model points (target 2), {np.median(rest):.2f} mm on the rest (target 4), "
           f"{np.mean(allv < 3.0) * 100:.0f} % within 3 mm, frame right on {np.mean(frame_ok) * 100:.0f} % "
           f"-> {'met' if ok else 'NOT met'}")

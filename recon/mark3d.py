@@ -9,16 +9,21 @@ comes in its own units and axes. :func:`mark` gives it both:
    +y up, +z towards the viewer, metres): the unit from the head's size, the left-right
    axis as the normal of the best mirror plane, the forward axis as the direction in which
    the surface ends in the narrowest cap (the nose), and up as the side where the slice a
-   hand's breadth beyond the nose is deepest (the skull, not the neck). Flags override
-   each; a flag the geometry contradicts (a head facing backwards) is an error.
+   hand's breadth beyond the nose is deep and near the front (forehead and skull), not
+   shallow and far behind (under the chin). Flags override each; a flag the geometry
+   contradicts (a head facing backwards) is an error. When up is a close call, the head is
+   also looked at the other way up and the feature points decide.
 3. :func:`render_views` draws the head from the front and the left side with the
-   project's renderer (orthographic, so each pixel is a ray along the view axis).
+   project's renderer (orthographic, so each pixel is a ray along the view axis), framed
+   on the head around the nose.
 4. A 2D detector finds the feature points in the two renders: by default
    :func:`recon.landmarks.detect`, the same landmark and profile analysis as the photo
    annotation (:func:`landmark_detector`).
 5. :func:`lift` casts each 2D point back onto the surface (trimesh ray queries): front
-   points along the front ray, profile points where the side ray meets the mirror plane,
-   side-only points along the side ray (their right partners mirrored and snapped).
+   points along the front ray, profile points where the side ray meets the mirror plane
+   (on the mesh's midline cut), side-only points along the side ray (grazing rays take the
+   rim they graze; their right partners mirrored and snapped), pupils on a separate
+   eyeball at its front.
 6. :func:`refine_frame` turns the frame so the points sit as the generic head's do (a
    Umeyama rotation), and the head is rendered and lifted once more in that frame.
 7. :func:`find_parts` finds the eyes (the pieces the pupils' rays hit), teeth and tongue
@@ -71,7 +76,6 @@ _SLICE = 0.105  # metres beyond the nose: the forehead and skull above, under th
 _CLOSE_CALL = 0.03  # metres: up scores nearer than this leave it to the feature points
 _NOT_A_NOSE = 0.8  # a narrowest end at least this share of the next one is no nose
 _SKIN, _WHITE, _PINK = (0.86, 0.68, 0.56), (0.92, 0.92, 0.9), (0.75, 0.4, 0.42)
-_MIRRORED = {i: fp.mirror for i, fp in FEATURE_POINTS.items() if fp.mirror}
 
 
 def _axis_name(v: np.ndarray) -> str:
@@ -434,7 +438,8 @@ def refine_frame(frame: Frame, points: Mapping[str, np.ndarray], weights: Mappin
     w = np.ones(len(ids)) if weights is None else np.array([max(weights[i], 1e-3) for i in ids])
     r, t, s = _umeyama(p, q, w)
     angle = float(np.degrees(np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1))))
-    return frame.turned(r, t / s, f"turned {angle:.1f} degrees to sit as the generic head (by {len(ids)} points)"), angle
+    note = f"turned {angle:.1f} degrees to sit as the generic head (by {len(ids)} points)"
+    return frame.turned(r, t / s, note), angle
 
 
 def _umeyama(p: np.ndarray, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -722,10 +727,11 @@ def lift(head: Head, views: Views, found: FdpFile, surface: _Surface | None = No
 
     The rule per point (the catalogue's visibility): a profile point on the midline (side
     view ``P``) is where the side ray meets the mirror plane x = 0, moved to the nearest
-    point of the profile curve (the mesh cut by that plane); a point clear in the front view is the front ray's first hit, its confidence
-    lowered where the side view puts it elsewhere; a point only the side view shows clearly
-    is the side ray's first hit; its right partner (the side view shows the left) is the
-    mirror image, snapped.
+    point of the profile curve (the mesh cut by that plane); a point clear in the front
+    view is the front ray's first hit, its confidence lowered where the side view puts it
+    elsewhere; a point only the side view shows clearly is the side ray's first hit (a ray
+    grazing a rim takes the rim); its right partner (the side view shows the left) is the
+    mirror image, snapped; a pupil on a separate eyeball is the eyeball's front.
 
     Parameters
     ----------

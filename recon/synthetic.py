@@ -502,8 +502,9 @@ def perfect_detector(points: dict[str, np.ndarray], name: str = "perfect 2D dete
         for view in ("front", "side"):
             cam = views.cameras[view]
             px = cam.project(world)
-            keep = [k for k, i in enumerate(ids)
-                    if (FPS[i].front != "N" if view == "front" else FPS[i].side_view != "N" and FPS[i].side in ("C", "L"))
+            shown = (lambda fp: fp.front != "N") if view == "front" else \
+                (lambda fp: fp.side_view != "N" and fp.side in ("C", "L"))
+            keep = [k for k, i in enumerate(ids) if shown(FPS[i])
                     and -0.5 <= px[k, 0] <= cam.width - 0.5 and -0.5 <= px[k, 1] <= cam.height - 0.5]
             fdp.views[view] = ViewAnnotation(width=cam.width, height=cam.height,
                                              points={ids[k]: px[k] for k in keep},

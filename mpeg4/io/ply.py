@@ -37,7 +37,8 @@ def read_ply(path: str | os.PathLike) -> Head:
                          fix="export the head as a PLY triangle mesh") from None
     faces = np.asarray(getattr(mesh, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
     if not len(faces):
-        raise InputError("the file has no faces", where=path, fix="export the head as a polygon mesh, not a point cloud")
+        raise InputError("the file has no faces", where=path,
+                         fix="export the head as a polygon mesh, not a point cloud")
     colour = (0.8, 0.8, 0.8)
     vc = getattr(getattr(mesh, "visual", None), "vertex_colors", None)
     if getattr(mesh.visual, "kind", None) == "vertex" and vc is not None and len(vc) == len(mesh.vertices):

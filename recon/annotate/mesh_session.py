@@ -261,8 +261,8 @@ class MeshSession:
                 raise InputError(f"confidence given for {i}, which is not placed", where=f"{where}, mesh.confidence",
                                  fix="drop its confidence")
             if isinstance(c, bool) or not isinstance(c, (int, float)) or not 0 <= c <= 1:
-                raise InputError(f"confidence {c!r} is not a number in [0, 1]", where=f'{where}, mesh.confidence["{i}"]',
-                                 fix="give a number from 0 to 1")
+                raise InputError(f"confidence {c!r} is not a number in [0, 1]",
+                                 where=f'{where}, mesh.confidence["{i}"]', fix="give a number from 0 to 1")
             conf[i] = float(c)
         return points, conf
 
