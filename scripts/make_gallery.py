@@ -24,7 +24,6 @@ import argparse
 import hashlib
 import json
 import os
-import shutil
 import sys
 import tempfile
 import time
@@ -49,8 +48,7 @@ def notebooks(names=None) -> list[Path]:
     for name in names:
         match = [p for p in found if p.name == name or p.stem == name or p.name.startswith(name)]
         if not match:
-            raise SystemExit(f"make_gallery: no notebook {name!r} in {NOTEBOOK_DIR} "
-                             f"(there are: {', '.join(p.stem for p in found)})")
+            raise ValueError(f"no notebook {name!r} in {NOTEBOOK_DIR} (there are: {', '.join(p.stem for p in found)})")
         picked += [p for p in match if p not in picked]
     return picked
 
@@ -106,12 +104,14 @@ def read_manifest() -> dict:
 
 def run(paths: list[Path], check: bool = False, say=print) -> int:
     """Execute ``paths`` and update (or, with ``check``, compare) the gallery; exit status."""
+    from nbclient.exceptions import CellExecutionError
+
     from mpeg4.io.atomic import atomic_write
     from recon.synthetic import default_ict_path
 
     if not default_ict_path().exists():
-        say(f"make_gallery: {default_ict_path()}: the ICT FaceKit data is missing, and the shape-error figure "
-            "needs it (fix: put ict_facekit.npz there)")
+        print(f"make_gallery: {default_ict_path()}: the ICT FaceKit data is missing, and the shape-error figure "
+              "needs it (fix: put ict_facekit.npz there)", file=sys.stderr)
         return 2
     manifest = read_manifest()
     pictures = dict(manifest.get("pictures", {}))
@@ -120,7 +120,11 @@ def run(paths: list[Path], check: bool = False, say=print) -> int:
         for path in paths:
             work, fresh = Path(tmp) / path.stem, Path(tmp) / path.stem / "gallery"
             work.mkdir()
-            seconds = execute(path, work, fresh)
+            try:
+                seconds = execute(path, work, fresh)
+            except CellExecutionError as e:
+                print(f"make_gallery: {path.name} failed; its pictures are left as they were\n{e}", file=sys.stderr)
+                return 1
             made = sorted(fresh.glob("*.png"))
             before = {n for n, p in pictures.items() if p["notebook"] == path.name}
             for name in before - {p.name for p in made}:
@@ -158,11 +162,17 @@ def run(paths: list[Path], check: bool = False, say=print) -> int:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("notebooks", nargs="*", help="notebooks to run (file names or their starts, e.g. 01); all by default")
+    ap.add_argument("notebooks", nargs="*",
+                    help="notebooks to run (file names or their starts, e.g. 01); all by default")
     ap.add_argument("--check", action="store_true", help="write nothing; exit 1 when a picture would change")
     args = ap.parse_args(argv)
     sys.path.insert(0, str(ROOT))
-    return run(notebooks(args.notebooks), check=args.check)
+    try:
+        paths = notebooks(args.notebooks)
+    except ValueError as e:
+        print(f"make_gallery: {e}", file=sys.stderr)
+        return 2
+    return run(paths, check=args.check)
 
 
 if __name__ == "__main__":

@@ -114,3 +114,9 @@ def test_notebook_runs_and_remakes_its_gallery_pictures(path, tmp_path, request,
     notebook_report.append(line)
     assert not wrong, (f"{path.name}: pictures no longer match docs/gallery ({wrong}): if the change is meant, run "
                        "python3 scripts/make_gallery.py and look at them")
+
+
+def test_make_gallery_names_an_unknown_notebook_in_one_line(capsys):
+    assert make_gallery.main(["07"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("make_gallery: no notebook '07'") and "01_photos_to_head" in err and "\n" not in err
