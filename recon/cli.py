@@ -80,8 +80,10 @@ def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG), or 
                                                                "orthographic cameras if omitted."),
              unit: str = typer.Option(None, help="3D mode: the mesh's unit (m, cm, mm, in) [default: from its size]."),
              up: str = typer.Option(None, help="3D mode: the mesh's up axis (+y, +z, ...) [default: detected]."),
-             forward: str = typer.Option(None, help="3D mode: the axis the face looks along [default: detected].")
-             ) -> None:
+             forward: str = typer.Option(None, help="3D mode: the axis the face looks along [default: detected]."),
+             detect: bool = typer.Option(True, "--detect/--no-detect",
+                                         help="Pre-place the points automatically (recon.landmarks; fmc mark on a "
+                                              "mesh); without, from the generic head.")) -> None:
     """Place and correct the feature points on the two photos, or on a head mesh, in a local web page."""
     from .annotate import annotate as run_annotate
 
@@ -89,8 +91,8 @@ def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG), or 
         typer.echo(f"annotate: {url}")
         _say("serving on 127.0.0.1 only; press Ctrl-C to stop")
 
-    path = run_annotate(front, side, fdp, open_browser=browser, port=port, ipd_mm=ipd, focal_px=focal, ready=ready,
-                        unit=unit, up=up, forward=forward)
+    path = run_annotate(front, side, fdp, open_browser=browser, port=port, detect=detect, ipd_mm=ipd, focal_px=focal,
+                        ready=ready, unit=unit, up=up, forward=forward)
     typer.echo(f"fdp: {path}")
 
 

@@ -229,8 +229,8 @@ class FeatureLineWarp:
             # Exact at the anchor (a feature-line point): its own pixels in both photos.
             k0 = 1 + int(np.flatnonzero(np.asarray(_ARC) == 0.0)[0])
             su[k0], cx[k0] = s_anchor[0], f_anchor[0]
-            su = _monotone(su, np.sign(ds[0]) or 1.0)
-            cx = _monotone(cx, np.sign(df[0]) or 1.0)
+            su = _monotone(su, np.sign(ds[0]) or 1.0, keep=k0)
+            cx = _monotone(cx, np.sign(df[0]) or 1.0, keep=k0)
         return np.c_[su, np.full(len(su), s_anchor[1])], np.c_[cx, np.full(len(cx), f_anchor[1])]
 
     @staticmethod
@@ -344,12 +344,22 @@ def _first_crossing(s: np.ndarray, signed_x: np.ndarray, right_end: np.ndarray) 
     return float(s[hit[0]]) if len(hit) else float(s[-1])
 
 
-def _monotone(values: np.ndarray, sign: float) -> np.ndarray:
-    """The values made non-decreasing along ``sign`` (a running maximum), then nudged to
-    be strictly so, keeping every row's points in order."""
-    v = np.maximum.accumulate(np.asarray(values, float) * sign)
-    v = v + np.arange(len(v)) * 1e-6
-    return v * sign
+def _monotone(values: np.ndarray, sign: float, keep: int | None = None) -> np.ndarray:
+    """The values made increasing along ``sign``, keeping every row's points in order.
+
+    Without ``keep``, a running maximum (then nudged to be strict). With ``keep``, that
+    value stays as it is and the others give way: a running maximum after it, a running
+    minimum before it (the anchor of a row is a feature point, exact in both photos).
+    """
+    v = np.asarray(values, float) * sign
+    if keep is None:
+        v = np.maximum.accumulate(v)
+        return (v + np.arange(len(v)) * 1e-6) * sign
+    after = np.maximum.accumulate(v[keep:])
+    before = np.minimum.accumulate(v[:keep + 1][::-1])[::-1]
+    v = np.r_[before[:-1], after]
+    steps = np.arange(len(v)) - keep
+    return (v + steps * 1e-6) * sign
 
 
 def _bary(p: np.ndarray, c: np.ndarray) -> np.ndarray:

@@ -91,10 +91,13 @@ RULES = {
     "9.9": "bottom of the lower central incisors", "9.10": "cutting edge of the upper central incisors",
     "9.11": "cutting edge of the lower central incisors",
     "9.12": "lm 28 (nose bump)", "9.13": "front(0.35 x of 3.11, y of 9.12)", "9.15": "lm 33 (subnasale)",
-    "10.1": "top of the left ear (the ear: the connected skin patch within 2 cm of its outermost point, "
-            "up to 1 cm above the pupils)", "10.3": "rear rim of the ear at mid height", "10.5": "lowest point of the lobe",
+    "10.1": "top of the left ear's rim (the rim: the connected patch around the ear's outermost point of "
+            "vertices from which a ray towards the midline meets skin again 2-40 mm on)",
+    "10.3": "rear rim of the ear at mid height (between the lobe and the rim's top)",
+    "10.5": "lowest point of the lobe (the ear: the connected skin patch within 2 cm of its outermost point, "
+            "up to 1 cm above the pupils)",
     "10.7": "frontmost ear vertex in its lowest 8 mm (lobe joins the face)",
-    "10.9": "frontmost ear vertex in its highest 8 mm (ear joins the head)",
+    "10.9": "highest skin vertex beside the rim, in front of the ear's middle (the ear joins the head)",
     "11.1": "front midline vertex as far above the glabella (midway between 4.1 and lm 27) as the glabella is "
             "above 9.15 (facial thirds; the head has no hair)",
     "11.3": "front(x of 4.5, y of 11.1 - 10 mm) (end of the hairline)",
@@ -190,6 +193,36 @@ class _Placer:
         return int(ids[np.argmin(d)])
 
 
+def _ear_rim(v: np.ndarray, data, tip: int) -> np.ndarray:
+    """Skin vertex ids of the left ear's rim — the connected patch around the outermost point
+    ``tip`` of vertices from which a ray towards the midline meets skin again 2–40 mm on —
+    and of the vertices beside it."""
+    import trimesh
+
+    skin_parts = [i for i, n in enumerate(data["part_names"]) if str(n) in
+                  ("Face", "Head and Neck", "Mouth socket", "Eye socket left", "Eye socket right")]
+    tris = data["faces"][np.isin(data["faces_part"], skin_parts)]
+    mesh = trimesh.Trimesh(v, tris, process=False)
+    near = np.flatnonzero(np.linalg.norm(v[:, [1, 2]] - v[tip, [1, 2]], axis=1) < 0.045)
+    near = near[np.isin(near, tris) & (v[near, 0] > v[tip, 0] - 0.03)]
+    origins = v[near] - [1e-4, 0.0, 0.0]
+    hits, ray, _ = mesh.ray.intersects_location(origins, np.tile([-1.0, 0.0, 0.0], (len(near), 1)),
+                                                multiple_hits=False)
+    dist = np.full(len(near), np.inf)
+    dist[ray] = np.linalg.norm(hits - origins[ray], axis=1)
+    rim = np.zeros(len(v), bool)
+    rim[near[(dist > 0.002) & (dist < 0.04)]] = True
+    t = tris[np.all(rim[tris], axis=1)]
+    graph = sp.coo_matrix((np.ones(3 * len(t)), (t.ravel(), np.roll(t, 1, axis=1).ravel())), shape=(len(v), len(v)))
+    _, comp = connected_components(graph, directed=False)
+    ear = rim & (comp == comp[tip])
+    # Skin vertices that share a triangle with the rim but are not on it: its border with
+    # the head (and with the hollow inside the ear).
+    touch = tris[ear[tris].any(axis=1) & ~ear[tris].all(axis=1)]
+    beside = np.setdiff1d(np.unique(touch), np.flatnonzero(ear))
+    return np.flatnonzero(ear), beside
+
+
 def place_feature_points(data, part_vertices) -> dict[str, tuple[str, tuple[int, ...], tuple[float, ...]]]:
     """FP id → (part, ICT vertex ids, weights) for all 84 points (rules: :data:`RULES`)."""
     P = _Placer(data, part_vertices)
@@ -269,15 +302,22 @@ def place_feature_points(data, part_vertices) -> dict[str, tuple[str, tuple[int,
     _, comp = connected_components(graph, directed=False)
     ear = np.flatnonzero(mask & (comp == comp[tip]))
     ear_y = v[ear, 1]
-    at("10.1", ear[np.argmax(ear_y)])
     at("10.5", ear[np.argmin(ear_y)])
-    y_mid = 0.5 * (ear_y.min() + ear_y.max())
-    band = ear[np.abs(ear_y - y_mid) < 0.004]
-    at("10.3", band[np.argmin(v[band, 2])])
     low = ear[ear_y < ear_y.min() + 0.008]
     at("10.7", low[np.argmax(v[low, 2])])
-    high = ear[ear_y > ear_y.max() - 0.008]
-    at("10.9", high[np.argmax(v[high, 2])])
+    # The top of that patch runs onto the temple; the ear's own rim is told from it by what
+    # lies behind: a ray into the head from a rim vertex meets skin again within a few
+    # centimetres (the side of the head behind the ear), from the temple it does not.
+    helix, joins = _ear_rim(v, data, tip)
+    hy = v[helix, 1]
+    at("10.1", helix[np.argmax(hy)])
+    # Where the rim's front meets the head: the highest skin vertex beside the rim (not on
+    # it) in front of the ear's middle.
+    front = joins[v[joins, 2] > v[helix, 2].mean()]
+    at("10.9", front[np.argmax(v[front, 1])])
+    y_mid = 0.5 * (ear_y.min() + hy.max())
+    band = ear[np.abs(ear_y - y_mid) < 0.004]
+    at("10.3", band[np.argmin(v[band, 2])])
     # Hairline and skull.
     glabella_y = 0.5 * (pos("4.1")[1] + v[lm[27], 1])
     y_hair = glabella_y + (glabella_y - pos("9.15")[1])

@@ -1,4 +1,4 @@
-"""Shared fixtures: the Khronos glTF validator, the ICT FaceKit test data."""
+"""Shared fixtures: the Khronos glTF validator, the ICT FaceKit test data, the notebooks' report."""
 
 import json
 import shutil
@@ -50,3 +50,21 @@ def remeshed(ict_npz, tmp_path_factory):
         return cache[seed, fmt]
 
     return get
+
+
+_NOTEBOOK_LINES = pytest.StashKey[list]()
+
+
+@pytest.fixture
+def notebook_report(request):
+    """A list to append lines to; they are printed in a "notebooks" section at the end of
+    the run, so the log shows every notebook that was executed and how long it took."""
+    return request.config.stash.setdefault(_NOTEBOOK_LINES, [])
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    lines = config.stash.get(_NOTEBOOK_LINES, [])
+    if lines:
+        terminalreporter.section("notebooks")
+        for line in lines:
+            terminalreporter.write_line(line)
