@@ -42,6 +42,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import contextlib
 import csv
+import functools
 import gc
 import json
 import multiprocessing
@@ -300,9 +301,44 @@ def _landmark_detector() -> Callable | None:
 
 
 def _memory() -> dict:
-    """This process's peak resident memory so far (the kernel's high-water mark), MB."""
-    peak_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # kilobytes on Linux
-    return {"rss_peak_mb": round(peak_kb / 1024, 1)}
+    """This process's peak resident memory so far and its resident memory now, MB.
+
+    The peak is the kernel's high-water mark of the process's own memory (``VmHWM``; the
+    ``ru_maxrss`` of :func:`resource.getrusage` would also count the parent a worker was
+    started from, on Linux); ``ru_maxrss`` where ``/proc`` is absent.
+    """
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            fields = dict(line.split(":", 1) for line in f if line.startswith(("VmHWM", "VmRSS")))
+        return {"rss_peak_mb": round(int(fields["VmHWM"].split()[0]) / 1024, 1),
+                "rss_mb": round(int(fields["VmRSS"].split()[0]) / 1024, 1)}
+    except (OSError, KeyError, ValueError):
+        kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # kilobytes on Linux, bytes on macOS
+        return {"rss_peak_mb": round(kb / 1024 / (1024 if os.uname().sysname == "Darwin" else 1), 1)}
+
+
+@functools.lru_cache(maxsize=1)
+def _libc():
+    import ctypes
+
+    try:
+        return ctypes.CDLL("libc.so.6")
+    except OSError:  # not glibc (macOS, musl): nothing to trim
+        return None
+
+
+def _trim_heap() -> None:
+    """Hand the memory freed by the head just built back to the system (glibc's
+    ``malloc_trim``): without it the heap keeps the holes a build leaves, and a worker's
+    footprint creeps up over the first heads of a batch."""
+    libc = _libc()
+    if libc is not None and hasattr(libc, "malloc_trim"):
+        libc.malloc_trim(0)
+
+
+def _cpu_seconds() -> float:
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
 
 
 def _detected_annotations(row: ManifestRow, folder: Path, detect: Callable | None) -> str:
@@ -320,7 +356,11 @@ def _detected_annotations(row: ManifestRow, folder: Path, detect: Callable | Non
     found = detect(front, side)
     if not isinstance(found, FdpFile):
         raise TypeError(f"automatic detection returned {type(found).__name__}, not an FdpFile")
-    found.views["front"].image, found.views["side"].image = front, side
+    for name, photo in (("front", front), ("side", side)):
+        if name not in found.views or not found.views[name].points:
+            raise InputError(f"automatic detection found no feature points on the {name} photo", where=photo,
+                             fix="check that the photo shows the face, or mark the points with recon annotate")
+        found.views[name].image = photo
     found.metadata = dict(found.metadata, reviewed=False, source="automatic detection (recon.landmarks)")
     path = folder / "annotations.fdp.json"
     write_fdp_json(path, found)
@@ -343,7 +383,7 @@ def _build_here(row: ManifestRow, out_dir: str, defaults: dict, created: str | N
 
     from .build import run_build
 
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), _cpu_seconds()
     out = Path(out_dir)
     final = out / row.id
     record = {"id": row.id, "line": row.line, "status": "failed", "worker": f"{socket.gethostname()}:{os.getpid()}"}
@@ -398,8 +438,9 @@ def _build_here(row: ManifestRow, out_dir: str, defaults: dict, created: str | N
         if tmp is not None:
             shutil.rmtree(tmp, ignore_errors=True)
         gc.collect()
+        _trim_heap()
     record.setdefault("seconds", round(time.perf_counter() - t0, 2))
-    record.update(_memory())
+    record.update(cpu_seconds=round(_cpu_seconds() - cpu0, 2), **_memory())
     return record
 
 
@@ -435,8 +476,10 @@ def build_person(row: ManifestRow, out_dir: str, defaults: dict, created: str | 
     Returns
     -------
     dict
-        ``id``, ``line``, ``status`` (``"done"`` or ``"failed"``), ``seconds``, ``worker``
-        (host:pid), ``rss_peak_mb`` (the worker's peak memory so far); when done ``files``,
+        ``id``, ``line``, ``status`` (``"done"`` or ``"failed"``), ``seconds``,
+        ``cpu_seconds`` (of the whole worker process meanwhile), ``worker`` (host:pid),
+        ``rss_peak_mb`` and ``rss_mb`` (the worker's peak memory so far, and after this
+        row); when done ``files``,
         ``unreviewed`` (points from automatic detection), ``clone_warnings``; when failed
         ``error`` (one line), ``error_kind`` (``"input"``: something in the row;
         ``"internal"``: a bug, with its ``traceback``).
@@ -568,6 +611,11 @@ def _worker_environment() -> Iterator[None]:
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+def _same_row(a: dict, b: dict) -> bool:
+    """Whether two records' rows ask for the same head (wherever they sit in the manifest)."""
+    return {k: v for k, v in a.items() if k != "line"} == {k: v for k, v in b.items() if k != "line"}
 
 
 def _partials(out: Path, pid: str | None = None) -> list[Path]:
@@ -779,7 +827,7 @@ def run_batch(manifest: str | os.PathLike, out_dir: str | os.PathLike, workers: 
             folder = out / row.id
             if (folder / RECORD_NAME).exists():
                 record = {**_read_record(folder), "skipped": True}
-                if record.get("row") not in (None, row.as_dict()):
+                if record.get("row") is not None and not _same_row(record["row"], row.as_dict()):
                     record["stale"] = f"built from another version of the row; delete {folder} to build it again"
                 report.latest[row.id] = record
             else:

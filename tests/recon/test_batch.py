@@ -54,7 +54,7 @@ def _impossible(folder: Path, row: dict) -> dict:
 
 def _write_csv(path: Path, rows: list[dict]) -> Path:
     with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=["id", "front", "side", "fdp", "ipd", "focal"])
+        w = csv.DictWriter(f, fieldnames=["id", "front", "side", "fdp", "ipd", "focal", "clone"])
         w.writeheader()
         w.writerows(rows)
     return path
@@ -194,6 +194,28 @@ def test_a_killed_batch_resumes_without_redoing_or_half_written_folders(people, 
     assert [json.loads(t)["id"] for t in report.read_text().splitlines()] == ["p1", "p2", "p3"]
 
 
+@pytest.mark.slow
+def test_a_worker_process_that_dies_costs_only_its_row(people, tmp_path, monkeypatch):
+    # A clone step that kills its process for one row, as a crash in native code or the
+    # out-of-memory killer would; importable by the spawned workers through sys.path.
+    (tmp_path / "dying_step.py").write_text("import os\n\n\ndef clone_step(head, source):\n"
+                                            "    if source.endswith('die'):\n        os._exit(3)\n"
+                                            "    return head, []\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import dying_step
+
+    folder, _, good = people
+    rows = [good[0], {**good[1], "id": "dies", "clone": str(tmp_path / "die")}, good[2]]
+    out = tmp_path / "out"
+    report = run_batch(_write_csv(folder / "dies.csv", rows), out, workers=1, texture_size=256,
+                       clone_step=dying_step.clone_step)
+    status = {r["id"]: r["status"] for r in report.records}
+    assert status == {"p1": "done", "dies": "failed", "p3": "done"}
+    (dead,) = report.failed
+    assert dead["error_kind"] == "crash" and "died while building it, 2 times" in dead["error"]
+    assert "line 3" in dead["error"] and not (out / "dies").exists() and _hidden(out) == []
+
+
 def test_a_row_without_annotations_uses_automatic_landmarks_and_is_flagged(people, tmp_path):
     import importlib.util
 
@@ -276,3 +298,11 @@ def test_manifest_formats_and_the_command_line(tmp_path):
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "line 2" in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_the_batch_does_not_import_fmc():
+    # recon never imports fmc: the clone step reaches it only when a row asks for it.
+    code = ("import sys, recon.batch, recon.animatable, recon.cli; "
+            "print([m for m in sys.modules if m.split('.')[0] == 'fmc'])")
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and r.stdout.strip() == "[]", r.stderr
