@@ -419,9 +419,7 @@ def _build_here(row: ManifestRow, out_dir: str, defaults: dict, created: str | N
         record.update(status="done", unreviewed=unreviewed, seconds=round(time.perf_counter() - t0, 2),
                       files=sorted(p.name for p in tmp.iterdir()), row=row.as_dict())
         (tmp / RECORD_NAME).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o777 & ~umask)  # mkdtemp's folder is private; the head's folder is not
+        os.chmod(tmp, out.stat().st_mode & 0o777)  # mkdtemp's folder is private: give it the output's
         # A folder named after the person appears complete, or not at all.
         try:
             os.rename(tmp, final)
@@ -444,8 +442,9 @@ def _build_here(row: ManifestRow, out_dir: str, defaults: dict, created: str | N
     return record
 
 
-# Every build of a process runs on one thread of its own: the renderer's OpenGL context
-# belongs to the thread that made it, and a Dask worker may run its tasks on several threads.
+# The renderer's OpenGL context belongs to the thread that made it. Local workers and a
+# caller building in its own process build on their main thread; a Dask worker runs tasks
+# on threads of its own, so there every build goes to one thread kept for it.
 _builder: cf.ThreadPoolExecutor | None = None
 _builder_lock = threading.Lock()
 
@@ -485,6 +484,8 @@ def build_person(row: ManifestRow, out_dir: str, defaults: dict, created: str | 
         ``"internal"``: a bug, with its ``traceback``).
     """
     global _builder
+    if threading.current_thread() is threading.main_thread():
+        return _build_here(row, out_dir, defaults, created, clone_step, detect)
     with _builder_lock:
         if _builder is None:
             _builder = cf.ThreadPoolExecutor(max_workers=1, thread_name_prefix="recon-batch")
