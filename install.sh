@@ -2,7 +2,8 @@
 # Install everything the project needs on a fresh machine (Debian + Python >= 3.11 + Node):
 # system libraries for headless rendering, espeak-ng, Chromium (the annotation page's browser
 # tests), the Node tools (the Khronos glTF validator used by the tests; three.js, bundled
-# into the annotation page), and the Python package with its test extras.
+# into the annotation page), the Python package with its test extras, and mediapipe (the
+# face mesh behind the automatic feature points).
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -22,5 +23,8 @@ fi
 
 npm ci --silent --no-audit --no-fund
 npm run build --silent  # three.js for the annotation page's 3D view, before the package is installed
-python3 -m pip install -q --disable-pip-version-check -e ".[test]"
+python3 -m pip install -q --disable-pip-version-check -e ".[test,landmarks]"
+# The face models for automatic feature points (recon.landmarks) are inside the mediapipe
+# wheel; installed without its declared dependencies (see pyproject.toml's landmarks extra).
+python3 -m pip install -q --disable-pip-version-check --no-deps "mediapipe==0.10.21"
 echo "install.sh: done"

@@ -29,7 +29,8 @@ def main(argv=None) -> int:
     from recon.cameras import fit_camera
     from recon.example import EXAMPLE_FDP, example_camera
     from recon.fit import fit_head
-    from recon.texture import blend_multiband, texture_skin
+    from recon.blend import blend_multiband
+    from recon.texture import texture_skin
 
     cam = example_camera()
     pair = load_pair(EXAMPLE_FDP)

@@ -117,13 +117,18 @@ def animate(head: Path = typer.Argument(..., help="Head with animation tables (.
 @app.command("clone")
 def clone_cmd(source: Path = typer.Option(..., "--source", help="Head with motion: morph targets and/or FATs (.glb)."),
               target: Path = typer.Option(..., "--target", help="Head with feature points (.glb, or .obj + fdp.json)."),
-              out: Path = typer.Option(..., "-o", "--out", help="Target with the cloned motion (.glb).")) -> None:
-    """Clone morph targets and Facial Animation Tables from one head onto another (work in progress:
-    exact on itself; see the README for the measured accuracy)."""
+              out: Path = typer.Option(..., "-o", "--out", help="Target with the cloned motion (.glb)."),
+              antialias: float = typer.Option(
+                  None, help="Radius of the anti-aliasing disc in the alignment space (0: none; default: 0.02 when "
+                             "the target is sparser than the source)."),
+              triangulation: str = typer.Option("mpeg4", help="Feature-point triangulation: mpeg4 (shipped) or "
+                                                              "delaunay.")) -> None:
+    """Clone morph targets and Facial Animation Tables from one head onto another (Pandzic's
+    Facial Motion Cloning; see the README for the measured accuracy)."""
     from fmc.clone import clone
     from mpeg4.io import load_head, save_head
 
-    head, warnings = clone(load_head(source), load_head(target))
+    head, warnings = clone(load_head(source), load_head(target), antialias=antialias, triangulation=triangulation)
     for w in warnings:
         typer.echo(f"fmc: warning: {w}", err=True)
     typer.echo(save_head(head, out))

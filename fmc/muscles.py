@@ -935,7 +935,6 @@ def _solve_scalar(fn, target: float, hi: float) -> float:
 
 def _fit_jaw(rig: MuscleRig, n: int, s: int, value: float, unit: float, goal: np.ndarray):
     head = rig.head
-    neutral = {p: part.vertices for p, part in head.parts.items()}
     g = float(np.linalg.norm(goal))
     axis = goal / g
     if n == 3:

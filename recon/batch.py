@@ -353,7 +353,11 @@ def _detected_annotations(row: ManifestRow, folder: Path, detect: Callable | Non
                          fix="mark the points (recon annotate FRONT SIDE) and give the fdp.json in the fdp "
                              "column, or install automatic detection (recon.landmarks)")
     front, side = require_file(row.front, "front photo"), require_file(row.side, "side photo")
-    found = detect(front, side)
+    try:
+        found = detect(front, side)
+    except ImportError as e:  # recon.landmarks is there but its models are not (mediapipe)
+        raise InputError(NO_LANDMARKS, where=row.where, fix=f"{e}; or mark the points (recon annotate FRONT SIDE) "
+                                                            f"and give the fdp.json in the fdp column") from None
     if not isinstance(found, FdpFile):
         raise TypeError(f"automatic detection returned {type(found).__name__}, not an FdpFile")
     for name, photo in (("front", front), ("side", side)):

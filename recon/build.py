@@ -35,7 +35,7 @@ from mpeg4.head import Head
 
 from .calibrate import DEFAULT_IPD_MM
 from .cameras import FittedCamera, fit_camera
-from .fit import attach_photo_sizes, fit_head
+from .fit import attach_photo_sizes, fit_head, require_views
 from .photos import check_photo, read_photo
 
 __all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "run_build", "bundle_fdp", "build_time",
@@ -87,11 +87,7 @@ def load_pair(fdp_path: str | os.PathLike, front: str | os.PathLike | None = Non
     fdp = read_fdp_json(fdp_path)
     given = {"front": front, "side": side}
     paths = {}
-    for name in ("front", "side"):
-        view = fdp.views.get(name)
-        if view is None or not view.points:
-            raise InputError(f"no feature points for the {name} photo", where=f"{fdp_path}, views",
-                             fix=f"annotate the {name} photo (recon annotate)")
+    for name, view in require_views(fdp, fdp_path).items():
         p = given[name]
         if p is None:
             if not view.image:

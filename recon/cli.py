@@ -115,7 +115,10 @@ def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
              port: int = typer.Option(0, "--port", help="Port on 127.0.0.1 (0: any free one)."),
              ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm, for the 3D preview."),
              focal: float = typer.Option(None, "--focal", help="Focal length in pixels, for the 3D preview; "
-                                                               "orthographic cameras if omitted.")) -> None:
+                                                               "orthographic cameras if omitted."),
+             detect: bool = typer.Option(True, "--detect/--no-detect",
+                                         help="Pre-place the points automatically (recon.landmarks); without, "
+                                              "from the generic head.")) -> None:
     """Place and correct the feature points on the two photos in a local web page."""
     from .annotate import annotate as run_annotate
 
@@ -123,7 +126,8 @@ def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
         typer.echo(f"annotate: {url}")
         _say("serving on 127.0.0.1 only; press Ctrl-C to stop")
 
-    path = run_annotate(front, side, fdp, open_browser=browser, port=port, ipd_mm=ipd, focal_px=focal, ready=ready)
+    path = run_annotate(front, side, fdp, open_browser=browser, port=port, detect=detect, ipd_mm=ipd, focal_px=focal,
+                        ready=ready)
     typer.echo(f"fdp: {path}")
 
 

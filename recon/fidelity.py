@@ -109,7 +109,7 @@ def reprojection(head: Head, photo: np.ndarray, front: FittedCamera, photo_mask:
 def seam_smoothness(layers, masks, band: int = 8) -> dict[str, float]:
     """Mean gradient magnitude (grey levels per pixel) across the layers' borders, for the
     multiresolution spline, a hard cut and a feathered edge (16 px), on the same layers."""
-    from .texture import blend_feather, blend_hard, blend_multiband, seam_band, seam_gradient
+    from .blend import blend_feather, blend_hard, blend_multiband, seam_band, seam_gradient
 
     where = seam_band(masks, band)
     return {"multiband": seam_gradient(blend_multiband(layers, masks), where),

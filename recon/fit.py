@@ -18,7 +18,7 @@ from mpeg4.head import Head
 from .calibrate import DEFAULT_IPD_MM, Calibration, calibrate
 from .deform import deform_head
 
-__all__ = ["fit_head", "run_fit", "image_size", "attach_photo_sizes"]
+__all__ = ["fit_head", "run_fit", "image_size", "attach_photo_sizes", "require_views"]
 
 
 def image_size(path: str | os.PathLike) -> tuple[int, int]:
@@ -26,6 +26,18 @@ def image_size(path: str | os.PathLike) -> tuple[int, int]:
     from .photos import photo_size
 
     return photo_size(path)
+
+
+def require_views(fdp, where: str) -> dict:
+    """The ``front`` and ``side`` views of an annotation file, refusing one with no points."""
+    views = {}
+    for name in ("front", "side"):
+        view = fdp.views.get(name)
+        if view is None or not view.points:
+            raise InputError(f"no feature points for the {name} photo", where=f"{where}, views",
+                             fix=f"annotate the {name} photo (recon annotate)")
+        views[name] = view
+    return views
 
 
 def attach_photo_sizes(fdp, sizes: dict[str, tuple[int, int]], where: str, photos: dict[str, str] | None = None):
@@ -81,13 +93,7 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
         from mpeg4.generic_head import load_generic_head
 
         generic = load_generic_head()
-    views = {}
-    for name in ("front", "side"):
-        view = fdp.views.get(name)
-        if view is None or not view.points:
-            raise InputError(f"no feature points for the {name} photo", where=f"{where}, views",
-                             fix=f"annotate the {name} photo (recon annotate)")
-        views[name] = view
+    views = require_views(fdp, where)
     size = {n: (v.width, v.height) if v.width and v.height else None for n, v in views.items()}
     try:
         cal = calibrate(views["front"].points, views["side"].points, generic, ipd_mm=ipd_mm, focal_px=focal_px,

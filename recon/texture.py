@@ -49,29 +49,21 @@ from mpeg4.errors import InputError
 from mpeg4.head import Head
 from mpeg4.render import Camera, render
 
-from .bake import fill_empty, rasterize
+from .bake import fill_empty
+from .blend import blend_feather, blend_hard, blend_multiband, seam_band, seam_gradient
 from .cameras import FittedCamera
+from .warp import FEATURE_LINE, FeatureLineWarp, sections
 
 __all__ = ["FEATURE_LINE", "REGIONS", "FeatureLineWarp", "SkinTexture", "feature_line", "feature_polygon", "line_depth", "vertex_regions",
            "triangle_regions", "split_by_region", "blend_multiband", "blend_hard", "blend_feather",
            "seam_band", "seam_gradient", "photo_background", "texture_skin", "textured_head"]
 
-#: The feature points of the feature line on the face's left, from the top of the skull to
-#: the angle of the jaw (Lee et al.); below the jaw the line follows the neck's outline in
-#: the front view (:func:`feature_line`). The right line is the mirror image.
-FEATURE_LINE = ("11.4", "11.3", "4.5", "10.9", "10.7", "2.13")
-_NECK_STEP = 0.01  # metres between the neck outline's points
+_NECK_STEP = 0.01  # metres between the neck line's points
 
 #: Texture regions of the skin: which layer a triangle samples.
 REGIONS = ("front", "seen side", "mirrored side", "hidden", "fold")
 FRONT, SEEN, MIRRORED, HIDDEN, FOLD = range(5)
 
-# Arc lengths (metres) behind (+) and in front of (−) the feature line at which a row's
-# control points are placed; _FAR makes the warp cover the whole photo.
-_ARC = (-0.06, -0.03, -0.015, 0.0, 0.01, 0.02, 0.035, 0.055, 0.08, 0.11, 0.15, 0.2, 0.26)
-_FAR = 1.5
-# Rows of control points added above the top and below the bottom of the line (metres).
-_ABOVE, _BELOW = (0.05, 1.0), (0.02, 0.04, 0.06, 0.09, 0.12, 0.16, 1.0)
 _VISIBLE_TOL = 0.003  # metres: a vertex this close behind the nearest surface is seen
 _HIDDEN_RGB = (96, 40, 44)  # the inside of the mouth
 _FOLD = 0.004  # metres: hidden skin this close to seen skin is a fold and takes its colour
@@ -89,10 +81,10 @@ def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, 
     """The feature line of one side of the face, top to bottom.
 
     Its feature points (:data:`FEATURE_LINE`, mirrored for ``"R"``) and, below the angle of
-    the jaw, the neck's outline seen from the front: at every :data:`_NECK_STEP` down to
-    the bottom of the skin, the widest point of the skin's cross-section on that side. The
-    front photo sees the neck squarely, so the line hands it the neck's front; the side
-    photos keep what lies behind.
+    the jaw, a line down the neck: at every :data:`_NECK_STEP` down to the bottom of the
+    skin, the point of the skin's cross-section (its convex outline) that faces half way
+    between the front and the side, where both photos see the neck at 45°. The front photo
+    gets the neck's front, the side photos what lies behind.
 
     Returns
     -------
@@ -111,12 +103,20 @@ def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, 
     v = np.asarray(skin_vertices, float)
     heights = np.arange(fps[-1, 1] - _NECK_STEP, v[:, 1].min() + 0.004, -_NECK_STEP)
     neck = []
-    for y, xz in zip(heights, _sections(v, skin_triangles, heights)):
-        on_side = xz[xz[:, 0] * sign > 0]
-        if len(on_side) < 3:
+    from scipy.spatial import ConvexHull
+
+    for y, xz in zip(heights, sections(v, skin_triangles, heights)):
+        if (xz[:, 0] * sign > 0).sum() < 3:
             break
-        k = int(np.argmax(on_side[:, 0] * sign))
-        neck.append([on_side[k, 0], y, on_side[k, 1]])
+        try:
+            hull = xz[ConvexHull(xz).vertices]
+        except Exception:  # a degenerate section: the line ends here
+            break
+        # The outline's point that faces half way between the two cameras (its support
+        # point along the 45° direction): both photos see the neck there at 45°, not the
+        # front one at a grazing angle.
+        k = int(np.argmax(hull @ np.array([sign, 1.0])))
+        neck.append([hull[k, 0], y, hull[k, 1]])
     points = np.vstack([fps, np.array(neck).reshape(-1, 3)])
     return points, np.r_[np.ones(len(fps), bool), np.zeros(len(neck), bool)]
 
@@ -148,8 +148,7 @@ def _visible(points: np.ndarray, cam: Camera, depth: np.ndarray) -> np.ndarray:
 # Extra directions (yaw, pitch in degrees) from which a vertex may be seen, to tell the
 # inside of the mouth and the eye sockets (seen from nowhere) from surfaces the photos
 # merely miss (behind the ears, under the chin).
-_AROUND = ((180.0, 0.0), (135.0, 0.0), (-135.0, 0.0), (0.0, 70.0), (90.0, 50.0), (-90.0, 50.0), (0.0, -60.0),
-           (45.0, 0.0), (-45.0, 0.0))
+_AROUND = ((180.0, 0.0), (135.0, 0.0), (-135.0, 0.0), (0.0, 70.0), (0.0, -60.0), (45.0, 0.0), (-45.0, 0.0))
 
 
 def _seen_from_around(head: Head, points: np.ndarray, size: int = 384) -> np.ndarray:
@@ -287,460 +286,6 @@ def split_by_region(triangles: np.ndarray, tri_region: np.ndarray, vertex_region
     return source, out_tri, region
 
 
-class FeatureLineWarp:
-    """A side photo deformed onto the front photo's frame along a feature line.
-
-    The control points lie on rows, one through each feature-line point and through
-    points between them (every ``row_step`` metres), more below the chin and above the
-    skull. A row follows the head's horizontal outline at its height (the convex hull of
-    the skin's cross-section) backwards and forwards from the line: each of its points is
-    placed in the side photo where the side camera sees that point of the outline, and in
-    the composite frame where the front camera sees it — up to the outline's silhouette in
-    the front view; behind it the outline unrolls outwards at the front photo's scale, so
-    that the back of the head spreads beside the face. Beyond the outline's ends (the back
-    and front midlines) and on rows with no outline (above the skull), rows continue
-    straight along the head's depth (side photo) and width (front photo). Every row keeps
-    its anchor's height in each photo, and consecutive rows are joined by two triangles per
-    pair of neighbouring points, so no triangle can fold; each triangle of the side photo
-    maps affinely onto the same triangle of composite points — one piecewise-affine map,
-    exactly invertible, so vertex coordinates (:meth:`forward`) and the warped image
-    (:meth:`inverse_map`) agree, and near the line they agree with the front photo's own
-    projection of the head.
-
-    Parameters
-    ----------
-    side, front : FittedCamera
-        The cameras of the side photo (or of the flipped side photo) and of the front one.
-    line : (K, 3) float
-        The feature line, top to bottom, metres (:func:`feature_line`).
-    line_fp : (K,) bool
-        Which of its points are feature points (they are never left out).
-    outward : {+1, -1}
-        +1 when the line is on the face's left (behind it lies +x), -1 on its right.
-    skin : (vertices, triangles), optional
-        The head's skin, for the outlines; without it every row is straight.
-    row_step : float
-        Largest height step between rows along the line, metres.
-    """
-
-    def __init__(self, side: FittedCamera, front: FittedCamera, line: np.ndarray, line_fp: np.ndarray,
-                 outward: float, skin: tuple[np.ndarray, np.ndarray] | None = None, row_step: float = 0.01):
-        where = "texture, feature line"
-        self._side, self._front, self._sigma = side, front, float(outward)
-        X = np.asarray(line, dtype=np.float64)
-        line_fp = np.asarray(line_fp, dtype=bool)
-        # Anchors: the line's points and points between them, then rows below its end.
-        anchors, is_fp = [X[0]], [bool(line_fp[0])]
-        for a, b, fb in zip(X[:-1], X[1:], line_fp[1:]):
-            k = max(1, int(np.ceil(np.linalg.norm(a - b) / row_step)))
-            anchors += [a + (b - a) * (j / k) for j in range(1, k + 1)]
-            is_fp += [False] * (k - 1) + [bool(fb)]
-        anchors = _descending(np.array(anchors), np.array(is_fp), side, front)
-        last = anchors[-1]
-        below = [last - np.array([0.0, h, 0.0]) for h in _BELOW]
-        mesh = None
-        if skin is not None:
-            heights = np.array([a[1] for a in anchors] + [b[1] for b in below])
-            mesh = dict(zip(heights.tolist(), _sections(np.asarray(skin[0], float), np.asarray(skin[1]), heights)))
-        rows = [self._straight_row(X[0], lift) for lift in reversed(_ABOVE)]
-        for x in anchors:
-            rows.append(self._outline_row(mesh, x) if mesh is not None else None)
-            if rows[-1] is None:
-                rows[-1] = self._straight_row(x, 0.0)
-        for h, b in zip(_BELOW, below):
-            row = self._outline_row(mesh, b, midline=True) if mesh is not None and h < 0.5 else None
-            rows.append(row if row is not None else self._straight_row(last, -h))
-        src = np.array([r[0] for r in rows])  # (R, C, 2)
-        dst = np.array([r[1] for r in rows])
-        for k, name, pts in ((0, "side", src), (1, "front", dst)):
-            v = pts[:, 0, 1]
-            if (np.diff(v) <= 0).any():
-                raise InputError(f"the feature line does not run downwards in the {name} photo", where=where,
-                                 fix=f"check the heights of {', '.join(FEATURE_LINE)} in the {name} photo")
-        n_rows, n_cols = src.shape[:2]
-        self._shape = (n_rows, n_cols)
-        self.source = src.reshape(-1, 2)
-        self.target = dst.reshape(-1, 2)
-        k = np.arange(n_rows * n_cols).reshape(n_rows, n_cols)
-        a, b, c, d = k[:-1, :-1], k[:-1, 1:], k[1:, :-1], k[1:, 1:]
-        self.simplices = np.r_[np.c_[a.ravel(), b.ravel(), c.ravel()], np.c_[b.ravel(), d.ravel(), c.ravel()]]
-        a_s = _signed_areas(self.source, self.simplices)
-        a_t = _signed_areas(self.target, self.simplices)
-        self.folded = int(np.sum(np.sign(a_s) != np.sign(a_t)))
-        if self.folded:
-            raise InputError(f"the side photo's feature line folds over itself when laid on the front photo's "
-                             f"({self.folded} triangles flip)", where=where,
-                             fix="check the positions of " + ", ".join(FEATURE_LINE) + " in both photos")
-
-    # Rows: (C, 2) side pixels and (C, 2) composite pixels, at _ARC offsets then the far ones.
-    def _directions(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Side-photo pixels per metre towards the back of the head, and front-photo pixels
-        per metre outwards, at a point."""
-        d = 0.01
-        s0, f0 = self._side.project(x[None])[0], self._front.project(x[None])[0]
-        ds = (self._side.project((x + [0.0, 0.0, -d])[None])[0] - s0) / d
-        df = (self._front.project((x + [self._sigma * d, 0.0, 0.0])[None])[0] - f0) / d
-        return ds, df
-
-    def _straight_row(self, x: np.ndarray, lift: float):
-        d = 0.01
-        s0, f0 = self._side.project(x[None])[0], self._front.project(x[None])[0]
-        up = np.array([0.0, d, 0.0])
-        s0 = s0 + (self._side.project((x + up)[None])[0] - s0) * (lift / d)
-        f0 = f0 + (self._front.project((x + up)[None])[0] - f0) * (lift / d)
-        ds, df = self._directions(x)
-        t = np.r_[-_FAR, _ARC, _FAR]
-        # Rows are horizontal in both photos (so that they cannot cross).
-        return (np.c_[s0[0] + ds[0] * t, np.full(len(t), s0[1])],
-                np.c_[f0[0] + df[0] * t, np.full(len(t), f0[1])])
-
-    def _outline_row(self, sections, x: np.ndarray, midline: bool = False):
-        """The row along the head's outline at the height of ``x`` (None when the section
-        is too small to follow)."""
-        from scipy.spatial import ConvexHull
-
-        xz = sections.get(float(x[1]))
-        if xz is None or len(xz) < 8:
-            return None
-        try:
-            hull = xz[ConvexHull(xz).vertices]
-        except Exception:  # a flat section: nothing to follow
-            return None
-        ring = np.vstack([hull, hull[:1]])
-        seglen = np.linalg.norm(np.diff(ring, axis=0), axis=1)
-        if seglen.sum() < 0.05:
-            return None
-        cum = np.r_[0.0, np.cumsum(seglen)]
-        perimeter = cum[-1]
-        zc = 0.5 * (hull[:, 1].min() + hull[:, 1].max())
-        sig = self._sigma
-
-        def at(s):
-            s = np.mod(s, perimeter)
-            return np.c_[np.interp(s, cum, ring[:, 0]), np.interp(s, cum, ring[:, 1])]
-
-        # Arc position of the anchor (the nearest place on the outline).
-        if midline:
-            s_a = self._crossing(at, cum, perimeter, ring, front=True)
-            if s_a is None:
-                return None
-        else:
-            q = np.asarray(x)[[0, 2]]
-            p0, p1 = ring[:-1], ring[1:]
-            dvec = p1 - p0
-            t = np.clip(((q - p0) * dvec).sum(axis=1) / np.maximum((dvec ** 2).sum(axis=1), 1e-18), 0, 1)
-            dist = np.linalg.norm(p0 + t[:, None] * dvec - q, axis=1)
-            j = int(np.argmin(dist))
-            s_a = cum[j] + t[j] * seglen[j]
-        theta = lambda p: np.arctan2(sig * p[:, 0], p[:, 1] - zc)  # noqa: E731
-        step = 1e-3
-        direction = 1.0 if theta(at(s_a + step))[0] > theta(at(s_a - step))[0] else -1.0
-        # How far the outline runs back to the back midline and forward to the front midline.
-        fine = np.arange(0.0, perimeter, 1e-3)
-        back_pts = at(s_a + direction * fine)
-        fwd_pts = at(s_a - direction * fine)
-        L_back = _first_crossing(fine, sig * back_pts[:, 0], back_pts[:, 1] < zc)
-        L_front = _first_crossing(fine, sig * fwd_pts[:, 0], fwd_pts[:, 1] > zc)
-        if midline:
-            L_front = 0.0
-        # The front view's silhouette: the outline's widest point between the midlines.
-        span = np.r_[-fine[fine <= L_front][::-1], fine[fine <= L_back]]
-        widest = span[int(np.argmax(sig * at(s_a + direction * span)[:, 0]))]
-        s_sil = max(widest, 0.0)
-        y = float(x[1])
-
-        def point(t):
-            return np.array([*at(s_a + direction * t)[0][:1], y, at(s_a + direction * t)[0][1]])
-
-        anchor3 = point(0.0) if midline else np.asarray(x, float)
-        s_anchor = self._side.project(anchor3[None])[0]
-        f_anchor = self._front.project(anchor3[None])[0]
-        ds, df = self._directions(anchor3)
-        side_u, comp_x = [], []
-        for t in _ARC:
-            tt = min(max(t, -L_front), L_back)
-            p = point(tt)
-            u = self._side.project(p[None])[0][0] + ds[0] * (t - tt)
-            if tt <= s_sil:
-                c = self._front.project(p[None])[0][0]
-                c += df[0] * (t - tt)  # beyond the front midline: straight on
-            else:
-                c = self._front.project(point(s_sil)[None])[0][0] + df[0] * (t - s_sil)
-            side_u.append(u)
-            comp_x.append(c)
-        side_u = _monotone(np.array(side_u), np.sign(ds[0]) or 1.0)
-        comp_x = _monotone(np.array(comp_x), np.sign(df[0]) or 1.0)
-        # The far points continue the row's ends straight on.
-        su = np.r_[side_u[0] + ds[0] * (-_FAR - _ARC[0]), side_u, side_u[-1] + ds[0] * (_FAR - _ARC[-1])]
-        cx = np.r_[comp_x[0] + df[0] * (-_FAR - _ARC[0]), comp_x, comp_x[-1] + df[0] * (_FAR - _ARC[-1])]
-        if not midline:
-            # Exact at the anchor (a feature-line point): its own pixels in both photos.
-            k0 = 1 + int(np.flatnonzero(np.asarray(_ARC) == 0.0)[0])
-            su[k0], cx[k0] = s_anchor[0], f_anchor[0]
-            su = _monotone(su, np.sign(ds[0]) or 1.0)
-            cx = _monotone(cx, np.sign(df[0]) or 1.0)
-        return np.c_[su, np.full(len(su), s_anchor[1])], np.c_[cx, np.full(len(cx), f_anchor[1])]
-
-    @staticmethod
-    def _crossing(at, cum, perimeter, ring, front: bool):
-        """Arc position where the outline crosses the midline x = 0 at its front (or back)."""
-        fine = np.arange(0.0, perimeter, 2.5e-4)
-        p = at(fine)
-        sgn = np.sign(p[:, 0])
-        idx = np.flatnonzero(sgn[:-1] * sgn[1:] <= 0)
-        if not len(idx):
-            return None
-        zs = p[idx, 1]
-        j = idx[int(np.argmax(zs))] if front else idx[int(np.argmin(zs))]
-        return float(fine[j])
-
-    def forward(self, side_px: np.ndarray) -> np.ndarray:
-        """(K, 2) composite-frame pixels of (K, 2) side-photo pixels."""
-        p = np.asarray(side_px, dtype=np.float64).reshape(-1, 2)
-        grid = self.source.reshape(self._shape + (2,))
-        v_rows = grid[:, 0, 1]  # every row is horizontal in the side photo
-        r = np.clip(np.searchsorted(v_rows, p[:, 1]) - 1, 0, len(v_rows) - 2)
-        a = (p[:, 1] - v_rows[r]) / (v_rows[r + 1] - v_rows[r])
-        # Where the quads' sides cross the point's height, left to right.
-        sides = grid[r, :, 0] * (1 - a[:, None]) + grid[r + 1, :, 0] * a[:, None]  # (K, C)
-        increasing = sides[:, -1] >= sides[:, 0]
-        key = np.where(increasing[:, None], sides, -sides)
-        c = np.clip((key < np.where(increasing, p[:, 0], -p[:, 0])[:, None]).sum(axis=1) - 1, 0, self._shape[1] - 2)
-        n_quads = (self._shape[0] - 1) * (self._shape[1] - 1)
-        quad = r * (self._shape[1] - 1) + c
-        out = np.empty_like(p)
-        for half in (0, 1):  # the quad's two triangles: try the first, else the second
-            tri = self.simplices[quad + half * n_quads]
-            corners = self.source[tri]
-            bary = _bary(p, corners)
-            ok = bary.min(axis=1) >= -1e-9
-            if half == 0:
-                first_ok = ok
-                out[ok] = np.einsum("kc,kcd->kd", bary[ok], self.target[tri[ok]])
-            else:
-                rest = ~first_ok
-                out[rest] = np.einsum("kc,kcd->kd", bary[rest], self.target[tri[rest]])
-        return out
-
-    def inverse_map(self, grid_to_composite: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-        """(H, W, 2) float32 side-photo pixels for a grid of composite-frame points.
-
-        Parameters
-        ----------
-        grid_to_composite : (3, 3) float
-            Affine map (homogeneous) from the grid's pixel (x, y) to composite pixels.
-        size : (height, width)
-            The grid. Points outside the warp get (-1, -1).
-        """
-        inv = np.linalg.inv(np.asarray(grid_to_composite, dtype=np.float64))
-        corners = (np.c_[self.target, np.ones(len(self.target))] @ inv.T)[:, :2]
-        ids, bary = rasterize(corners, self.simplices, size)
-        src = self.source[self.simplices]  # (T, 3, 2)
-        out = np.full(tuple(size) + (2,), -1.0, dtype=np.float32)
-        ys, xs = np.nonzero(ids >= 0)
-        out[ys, xs] = np.einsum("kc,kcd->kd", bary[ys, xs], src[ids[ys, xs]])
-        return out
-
-
-def _descending(anchors: np.ndarray, is_fp: np.ndarray, side: FittedCamera, front: FittedCamera,
-                min_gap_px: float = 2.0) -> list[np.ndarray]:
-    """The anchors whose rows run strictly downwards in both photos, top to bottom.
-
-    A person's feature line need not descend everywhere (the outer brow may sit lower than
-    where the ear joins the head); rows must, so anchors are taken by height and one that
-    would not sit at least ``min_gap_px`` below the previous row in both photos is left
-    out — a point between feature points first, a feature point only when two of them
-    share a height.
-    """
-    order = np.argsort(-anchors[:, 1], kind="stable")
-    a, fp = anchors[order], is_fp[order]
-    vs, vf = side.project(a)[:, 1], front.project(a)[:, 1]
-    keep = []
-    for k in range(len(a)):
-        if keep:
-            j = keep[-1]
-            if vs[k] - vs[j] < min_gap_px or vf[k] - vf[j] < min_gap_px:
-                if fp[k] and not fp[j]:
-                    keep[-1] = k  # a feature point displaces the point between them
-                continue
-        keep.append(k)
-    return [a[k] for k in keep]
-
-
-def _sections(vertices: np.ndarray, triangles: np.ndarray, heights: np.ndarray) -> list[np.ndarray]:
-    """For each height, the (K, 2) (x, z) points where the mesh's edges cross the plane
-    y = height (the cross-section's outline, unordered)."""
-    tri = np.asarray(triangles)
-    edges = np.unique(np.sort(np.r_[tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]], axis=1), axis=0)
-    a, b = vertices[edges[:, 0]], vertices[edges[:, 1]]
-    lo, hi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
-    out = []
-    for y in np.asarray(heights, float):
-        m = (lo < y) & (hi >= y)
-        t = (y - a[m, 1]) / (b[m, 1] - a[m, 1])
-        p = a[m] + t[:, None] * (b[m] - a[m])
-        out.append(p[:, [0, 2]])
-    return out
-
-
-def _first_crossing(s: np.ndarray, signed_x: np.ndarray, right_end: np.ndarray) -> float:
-    """First arc length at which a walk along the outline reaches the midline (signed x
-    turns negative) on the expected end (back or front); the walk's end otherwise."""
-    hit = np.flatnonzero((signed_x <= 0) & right_end)
-    return float(s[hit[0]]) if len(hit) else float(s[-1])
-
-
-def _monotone(values: np.ndarray, sign: float) -> np.ndarray:
-    """The values made non-decreasing along ``sign`` (a running maximum), then nudged to
-    be strictly so, keeping every row's points in order."""
-    v = np.maximum.accumulate(np.asarray(values, float) * sign)
-    v = v + np.arange(len(v)) * 1e-6
-    return v * sign
-
-
-def _bary(p: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """(K, 3) barycentric coordinates of points (K, 2) in triangles (K, 3, 2) (unclamped)."""
-    v0, v1 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
-    d = p - c[:, 0]
-    den = v0[:, 0] * v1[:, 1] - v0[:, 1] * v1[:, 0]
-    b1 = (d[:, 0] * v1[:, 1] - d[:, 1] * v1[:, 0]) / den
-    b2 = (v0[:, 0] * d[:, 1] - v0[:, 1] * d[:, 0]) / den
-    return np.c_[1.0 - b1 - b2, b1, b2]
-
-
-def _signed_areas(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    a, b, c = p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]]
-    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
-
-
-# --- blending ---------------------------------------------------------------------------------
-
-def _levels(shape, levels):
-    # Five levels at 2048² (four at 1024²): the coarsest band spans about a tenth of the
-    # face, enough to even out the photos' lighting across the seams without recolouring
-    # the middle of the face (more levels reach further in; benchmarks/texture_fidelity.py).
-    if levels is not None:
-        return int(levels)
-    return max(1, int(np.log2(min(shape[:2]))) - 6)
-
-
-def blend_multiband(images, masks, levels: int | None = None, method: str = "opencv") -> np.ndarray:
-    """Burt–Adelson multiresolution spline of images under complementary masks.
-
-    Parameters
-    ----------
-    images : sequence of (H, W, 3) uint8
-        Layers defined over the whole frame (fill what they cannot show beforehand).
-    masks : sequence of (H, W) bool
-        Where each layer is wanted; together they should cover the frame once.
-    levels : int, optional
-        Pyramid levels; ``log2(min(H, W)) - 6`` by default (4 at 1024², 5 at 2048²).
-    method : {"opencv", "skimage"}
-        OpenCV's multi-band blender (``cv2.detail_MultiBandBlender``) or Laplacian and
-        Gaussian pyramids built with scikit-image — the same spline; the benchmark compares
-        their speed.
-
-    Returns
-    -------
-    (H, W, 3) uint8
-    """
-    images = [np.asarray(i) for i in images]
-    masks = [np.asarray(m, dtype=bool) for m in masks]
-    if not images or len(images) != len(masks):
-        raise InputError(f"{len(images)} images but {len(masks)} masks", where="blend_multiband",
-                         fix="give one mask per image")
-    h, w = images[0].shape[:2]
-    for im, m in zip(images, masks):
-        if im.shape[:2] != (h, w) or m.shape != (h, w):
-            raise InputError("the images and masks differ in size", where="blend_multiband",
-                             fix="bring every layer to the same frame first")
-    n = _levels((h, w), levels)
-    if method == "opencv":
-        blender = cv2.detail_MultiBandBlender(0, n)
-        blender.prepare((0, 0, w, h))
-        for im, m in zip(images, masks):
-            blender.feed(im.astype(np.int16), m.astype(np.uint8) * 255, (0, 0))
-        out, _ = blender.blend(None, None)
-        return np.clip(out, 0, 255).astype(np.uint8)
-    if method == "skimage":
-        return _blend_skimage(images, masks, n)
-    raise InputError(f"unknown blend method {method!r}", where="blend_multiband", fix="use 'opencv' or 'skimage'")
-
-
-def _blend_skimage(images, masks, levels: int) -> np.ndarray:
-    """The spline with scikit-image's pyramid steps: G_{k+1} = reduce(G_k),
-    L_k = G_k - expand(G_{k+1}), the coarsest G_n kept; blended per level with the mask's
-    Gaussian pyramid and collapsed by G_k = L_k + expand(G_{k+1})."""
-    from skimage.transform import pyramid_expand, pyramid_reduce
-
-    def expand(a, shape):
-        up = pyramid_expand(a, upscale=2, channel_axis=-1 if a.ndim == 3 else None)
-        pad = [(0, max(0, shape[0] - up.shape[0])), (0, max(0, shape[1] - up.shape[1]))] + [(0, 0)] * (a.ndim - 2)
-        return np.pad(up, pad, mode="edge")[:shape[0], :shape[1]]
-
-    acc = weight = None
-    for im, m in zip(images, masks):
-        g = [im.astype(np.float64) / 255.0]
-        gm = [m.astype(np.float64)]
-        for _ in range(levels):
-            g.append(pyramid_reduce(g[-1], downscale=2, channel_axis=-1))
-            gm.append(pyramid_reduce(gm[-1], downscale=2))
-        lap = [g[k] - expand(g[k + 1], g[k].shape) for k in range(levels)] + [g[-1]]
-        if acc is None:
-            acc = [np.zeros_like(x) for x in lap]
-            weight = [np.zeros(x.shape[:2]) for x in lap]
-        for k in range(len(lap)):
-            acc[k] += lap[k] * gm[k][..., None]
-            weight[k] += gm[k]
-    acc = [a / np.maximum(wt, 1e-12)[..., None] for a, wt in zip(acc, weight)]
-    out = acc[-1]
-    for k in range(len(acc) - 2, -1, -1):
-        out = acc[k] + expand(out, acc[k].shape)
-    return np.clip(np.round(out * 255.0), 0, 255).astype(np.uint8)
-
-
-def blend_hard(images, masks) -> np.ndarray:
-    """Each pixel from the layer whose mask holds it (the seams' worst case)."""
-    out = np.zeros_like(np.asarray(images[0]))
-    for im, m in zip(images, masks):
-        out[np.asarray(m, dtype=bool)] = np.asarray(im)[np.asarray(m, dtype=bool)]
-    return out
-
-
-def blend_feather(images, masks, width: float = 16.0) -> np.ndarray:
-    """Alpha blend with masks blurred over ``width`` pixels (a feathered edge)."""
-    acc = np.zeros(np.asarray(images[0]).shape, dtype=np.float64)
-    total = np.zeros(acc.shape[:2])
-    for im, m in zip(images, masks):
-        a = cv2.GaussianBlur(np.asarray(m, dtype=np.float64), (0, 0), max(width / 2.0, 0.5))
-        acc += a[..., None] * np.asarray(im, dtype=np.float64)
-        total += a
-    return np.clip(np.round(acc / np.maximum(total, 1e-12)[..., None]), 0, 255).astype(np.uint8)
-
-
-def seam_band(masks, width: int = 8, within: np.ndarray | None = None) -> np.ndarray:
-    """(H, W) bool: pixels within ``width`` of a border between two masks (optionally only
-    inside ``within``)."""
-    label = np.zeros(np.asarray(masks[0]).shape, dtype=np.int32)
-    for k, m in enumerate(masks):
-        label[np.asarray(m, dtype=bool)] = k + 1
-    edge = np.zeros(label.shape, dtype=bool)
-    edge[:, 1:] |= label[:, 1:] != label[:, :-1]
-    edge[1:, :] |= label[1:, :] != label[:-1, :]
-    band = cv2.dilate(edge.astype(np.uint8), np.ones((2 * width + 1, 2 * width + 1), np.uint8)) > 0
-    return band & within if within is not None else band
-
-
-def seam_gradient(image: np.ndarray, band: np.ndarray) -> float:
-    """Mean gradient magnitude (grey levels per pixel) of an image inside a band."""
-    g = cv2.cvtColor(np.asarray(image), cv2.COLOR_RGB2GRAY).astype(np.float64)
-    gx = cv2.Sobel(g, cv2.CV_64F, 1, 0, ksize=3) / 8.0
-    gy = cv2.Sobel(g, cv2.CV_64F, 0, 1, ksize=3) / 8.0
-    return float(np.hypot(gx, gy)[band].mean())
-
-
-# --- the whole step ----------------------------------------------------------------------------
-
 @dataclass
 class SkinTexture:
     """The skin's texture and its layout.
@@ -801,10 +346,21 @@ def photo_background(photo: np.ndarray, tol: float = 14.0, border: int = 6) -> n
     return np.isin(labels, touching) & close
 
 
-def _head_meshes(head: Head):
-    from mpeg4.preview import head_meshes
+def _fill_outside(photo: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """The photo with what lies outside ``valid`` filled from inside (push–pull at half
+    resolution, which is all a smooth fill needs; the valid pixels keep their values)."""
+    h, w = valid.shape
+    half = cv2.resize(photo, ((w + 1) // 2, (h + 1) // 2), interpolation=cv2.INTER_AREA)
+    vhalf = cv2.resize(valid.astype(np.uint8), ((w + 1) // 2, (h + 1) // 2), interpolation=cv2.INTER_NEAREST) > 0
+    filled = cv2.resize(fill_empty(half, vhalf), (w, h), interpolation=cv2.INTER_LINEAR)
+    return np.where(valid[..., None], photo, filled)
 
-    return head_meshes(head)
+
+def _head_meshes(head: Head):
+    """The head's parts for depth renders only: no textures to upload, no normals to compute."""
+    from mpeg4.render import RenderMesh
+
+    return [RenderMesh(p.vertices, p.triangles, normals=np.zeros_like(p.vertices)) for p in head.parts.values()]
 
 
 def _depth(meshes, cam: Camera) -> np.ndarray:
@@ -924,10 +480,10 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
         if not head_mask.any():
             raise InputError(f"the head does not show in the {key} photo", where="texture",
                              fix="check the feature points of that photo")
-        fill[key] = fill_empty(photo, head_mask)
+        fill[key] = _fill_outside(photo, head_mask)
     layers = [cv2.warpAffine(fill["front"], A[:2], (size, size), flags=cv2.INTER_LINEAR,
                              borderMode=cv2.BORDER_REPLICATE)]
-    grid = max(1, size // 512)  # the warps are piecewise affine: a coarse map, linearly refined
+    grid = max(1, size // 256)  # the warps are piecewise affine: a coarse map, linearly refined
     coarse = (int(np.ceil(size / grid)) + 1,) * 2
     G = np.linalg.inv(A) @ np.diag([grid, grid, 1.0])  # coarse grid pixel → composite pixel
     for photo in (fill["side"], np.ascontiguousarray(fill["side"][:, ::-1])):

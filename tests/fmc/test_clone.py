@@ -1,64 +1,398 @@
-"""Facial motion cloning: exact on itself, FAPU-compliant on another head, clear errors."""
+"""Facial motion cloning: the steps on their own, accuracy against ICT ground truth, MPEG-4
+compliance of cloned tables, parts, and clear errors."""
+
+import importlib.util
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from fmc.clone import clone, clone_targets
+from fmc.clone import (alignment_space, clone, clone_targets, correspond, find_parts, interpolation_matrix,
+                       load_fp_triangulation, rigid_motion, triangulation_for, vertex_positions, warp)
 from mpeg4 import FAPS, InputError, apply_fat
+from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.fat import fap_unit
 from mpeg4.generic_head import load_generic_head
+from mpeg4.head import Head, SparseDisplacement
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
-def _pyun_error(cloned, truth, n_vertices):
+def _bench(name):
+    spec = importlib.util.spec_from_file_location(name, ROOT / "benchmarks" / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+@pytest.fixture(scope="module")
+def bench(ict_npz):
+    import sys
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        return _bench("clone_accuracy")
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+
+
+@pytest.fixture(scope="module")
+def ict(ict_npz):
+    return np.load(ict_npz)
+
+
+@pytest.fixture(scope="module")
+def identity(bench, ict):
+    """An ICT identity on the generic head's mesh (eye centres moved with the eyes)."""
+    return bench.ict_target(load_generic_head(), ict, 2000)
+
+
+def _pyun(cloned, truth, n_vertices):
     """Sum of vertex position errors over the sum of displacement norms, in per cent."""
     c = cloned["skin"].dense(n_vertices)
     g = truth["skin"].dense(n_vertices)
     return 100 * np.linalg.norm(c - g, axis=1).sum() / np.linalg.norm(g, axis=1).sum()
 
 
+# --- the steps ------------------------------------------------------------------------
+
+def _with_eye_turn(head):
+    """The head with a morph target turning the left eye 10 degrees up about its centre."""
+    from mpeg4.fat import rotation_matrix
+
+    eye = head.parts["eye_l"]
+    turned = (eye.vertices - eye.centre) @ rotation_matrix([1.0, 0.0, 0.0], -np.radians(10)).T + eye.centre
+    head.morph_targets["look_up_l"] = {"eye_l": SparseDisplacement(np.arange(eye.n_vertices), turned - eye.vertices)}
+    return head
+
+
 def test_cloning_a_head_onto_itself_is_exact():
-    head = load_generic_head()
-    names = ["jawOpen", "mouthSmile_L", "browInnerUp_L", "eyeBlink_R", "mouthPucker", "noseSneer_L"]
+    head = _with_eye_turn(load_generic_head())
+    names = ["jawOpen", "mouthSmile_L", "browInnerUp_L", "eyeBlink_R", "mouthPucker", "noseSneer_L", "look_up_l"]
     cloned = clone_targets(head, head, names)
     n = head.skin.n_vertices
-    errors = [_pyun_error(cloned[k], head.morph_targets[k], n) for k in names]
+    errors = [_pyun(cloned[k], head.morph_targets[k], n) for k in names[:-1]]
     assert max(errors) <= 0.05  # per cent
+    for name in names:
+        for part, d in head.morph_targets[name].items():
+            k = head.parts[part].n_vertices
+            assert np.abs(cloned[name][part].dense(k) - d.dense(k)).max() < 1e-9
 
 
-def test_cloned_fat_is_fapu_compliant_on_a_different_head(authored_head, ict_npz):
-    import importlib.util
-    from pathlib import Path
+def test_shipped_triangulation_loads_covers_and_mirrors():
+    tri = load_fp_triangulation()
+    head = load_generic_head()
+    for m in tri.members:
+        for fp in m:
+            assert fp in FEATURE_POINTS and head.feature_points[fp].part == "skin"
+    pos = vertex_positions(head, tri)[:, :2]
+    # Its stored places are the generic head's (a change of the space would show here).
+    assert np.abs(pos - tri.at).max() < 1e-3
+    a, b, c = (pos[tri.triangles[:, j]] for j in range(3))
+    area = 0.5 * ((b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0])
+    assert (area > 0).all()  # counter-clockwise, none flat
+    # The triangles tile the frame: the areas add up to the rectangle's, and random
+    # points fall in exactly one triangle.
+    assert area.sum() == pytest.approx(2 * 3.1416 * 3.8, rel=1e-9)
+    rng = np.random.default_rng(0)
+    pts = np.c_[rng.uniform(-np.pi, np.pi, 5000), rng.uniform(-1.6, 2.2, 5000)]
+    _, got = warp(pts, tri, pos, pos + 1.0, values=np.ones((len(pos), 1)))
+    assert np.allclose(got, 1.0)
+    # Left and right mirror each other.
+    by_members = {frozenset(m) if m else n: n for n, m in zip(tri.names, tri.members)}
 
-    spec = importlib.util.spec_from_file_location(
-        "shape_accuracy", Path(__file__).resolve().parents[2] / "benchmarks" / "shape_accuracy.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
-    target = load_generic_head()
-    target = target.with_vertices(bench.part_vertices(target, bench.identity_vertices(np.load(ict_npz),
-                                                                                       np.random.default_rng(7))))
-    target.morph_targets = {}
-    out, warnings = clone(authored_head, target)
+    def mirror(k):
+        m, name = tri.members[k], tri.names[k]
+        if not m:
+            return name[:-1] if name.endswith("r") else name + "r" if name + "r" in tri.names else name
+        return by_members[frozenset(FEATURE_POINTS[p].mirror or p for p in m)]
+
+    faces = {frozenset(tri.names[v] for v in t) for t in tri.triangles}
+    mirrored = {frozenset(mirror(v) for v in t) for t in tri.triangles}
+    assert faces == mirrored
+
+
+def test_shipped_triangulation_keeps_its_orientation_on_ict_identities(ict):
+    from fmc.clone import folded_triangles
+
+    tri = load_fp_triangulation()
+    generic = load_generic_head()
+    # Only the feature points' vertices matter: move those to each identity.
+    idx = np.unique([v for b in generic.feature_points.values() if b.part == "skin" for v in b.vertices])
+    neutral = ict["vertices"][idx].astype(np.float64)
+    modes = ict["identity_deltas"][:, idx].astype(np.float64)
+    folded_faces = 0
+    for seed in range(200):
+        z = np.random.default_rng(seed).standard_normal(100)
+        skin = generic.skin.vertices.copy()
+        skin[idx] = 0.01 * (neutral + np.tensordot(z, modes, 1))
+        folded = folded_triangles(tri, vertex_positions(generic.with_vertices({"skin": skin}), tri))
+        # Only the mouth corners may turn over (the inner corner outside the outer one).
+        assert all({"2.4", "2.5"} & set(f) for f in folded), folded
+        folded_faces += bool(folded)
+    assert folded_faces <= 4
+
+
+def test_the_two_directions_are_exact_inverses():
+    source = load_generic_head()
+    target = source.with_vertices({k: p.vertices * [1.12, 0.94, 1.05] + [0.01, -0.02, 0.0]
+                                   for k, p in source.parts.items()})
+    tri, notes = triangulation_for(source, target)
+    assert not notes
+    s_pos, t_pos = vertex_positions(source, tri), vertex_positions(target, tri)
+    pts = alignment_space(target, target.skin.vertices)[:, :2]
+    there, _ = warp(pts, tri, t_pos, s_pos)
+    back, _ = warp(there, tri, s_pos, t_pos)
+    assert np.abs(back - pts).max() < 1e-12
+    # The feature points land exactly on the source's.
+    k = tri.names.index("3.1")
+    moved, _ = warp(t_pos[k:k + 1, :2], tri, t_pos, s_pos)
+    assert np.allclose(moved, s_pos[k, :2], atol=1e-12)
+
+
+def test_interpolation_rules():
+    # Two layers over the unit square (radius 1 and 0.5) and a triangle off to the side.
+    space = np.array([[0, 0, 1], [1, 0, 1], [0, 1, 1], [0, 0, 0.5], [1, 0, 0.5], [0, 1, 0.5],
+                      [3, 0, 1], [4, 0, 1], [3, 1, 1]], dtype=float)
+    tris = np.array([[0, 1, 2], [3, 4, 5], [6, 7, 8]])
+    pts = np.array([[0.2, 0.3], [0.2, 0.3], [5.0, 0.0]])
+    w = interpolation_matrix(pts, np.array([0.95, 0.55, 1.0]), space, tris, 9, height=1.0)
+    assert np.allclose(w.sum(axis=1), 1.0)
+    # Inside: barycentric weights, on the layer nearest in depth.
+    assert np.allclose(w[0].toarray().ravel()[:3], [0.5, 0.2, 0.3])
+    assert np.allclose(w[1].toarray().ravel()[3:6], [0.5, 0.2, 0.3])
+    # Outside every triangle: the nearest one, negative weights clamped, renormalised.
+    assert np.allclose(w[2].toarray().ravel()[6:], [0.0, 1.0, 0.0])
+    # The other lip's vertices lend nothing.
+    forbidden = np.zeros(9, bool)
+    forbidden[1] = True
+    w = interpolation_matrix(pts[:1], np.array([0.95]), space, tris, 9, height=1.0, forbidden=forbidden)
+    assert np.allclose(w.toarray().ravel()[:3], [0.5 / 0.8, 0.0, 0.3 / 0.8])
+    # On the forbidden corner itself, the triangle's other corners share the point.
+    w = interpolation_matrix(np.array([[1.0, 0.0]]), np.array([1.0]), space, tris, 9, height=1.0, forbidden=forbidden)
+    assert np.allclose(w.toarray().ravel()[:3], [0.5, 0.0, 0.5])
+    # Anti-aliasing averages the samples of a disc: a linear field keeps its value at the
+    # centre, and each row still sums to one.
+    w = interpolation_matrix(pts[:1], np.array([1.0]), space, tris, 9, height=1.0, support=0.05)
+    assert w.sum() == pytest.approx(1.0)
+    assert (w @ space[:, 0])[0] == pytest.approx(0.2, abs=1e-9)
+
+
+def test_a_lip_keeps_its_inner_surface():
+    """The lower lip's inner surface curls up behind the upper lip, above the line where
+    they meet: along the mesh it is still the lower lip's (it opens with the jaw)."""
+    from fmc.clone import lip_sides
+
+    head = load_generic_head()
+    space = alignment_space(head, head.skin.vertices)
+    side, _, notes = lip_sides(head, head, space, space)
+    assert not notes
+    opens = head.morph_targets["jawOpen"]["skin"].dense(head.skin.n_vertices)[:, 1] < -0.01
+    in_zone = opens & (side != 0)
+    assert in_zone.sum() > 700
+    assert (side[in_zone] < 0).mean() > 0.99  # by the line alone three in four
+
+
+def test_rigid_parts_turn_about_their_own_centres():
+    source = _with_eye_turn(load_generic_head())
+    target = source.with_vertices({k: p.vertices * 1.1 for k, p in source.parts.items()})
+    for p in target.parts.values():
+        if p.centre is not None:
+            p.centre = p.centre * 1.1
+    cloned = clone_targets(source, target, ["look_up_l", "jawOpen"])
+    for name, part in (("look_up_l", "eye_l"), ("jawOpen", "teeth_lower")):
+        s_pts = source.parts[part].vertices
+        t_pts = target.parts[part].vertices
+        r_s, _ = rigid_motion(s_pts, s_pts + source.morph_targets[name][part].dense(len(s_pts)), np.zeros(3))
+        r_t, _ = rigid_motion(t_pts, t_pts + cloned[name][part].dense(len(t_pts)), np.zeros(3))
+        assert np.allclose(r_s, r_t, atol=1e-9)  # the same turn
+    # The eye turns about the target's eye centre: its centre does not move.
+    d = cloned["look_up_l"]["eye_l"].dense(target.parts["eye_l"].n_vertices)
+    r, t = rigid_motion(target.parts["eye_l"].vertices, target.parts["eye_l"].vertices + d, target.parts["eye_l"].centre)
+    assert np.linalg.norm(t) < 1e-6
+
+
+# --- against ground truth -------------------------------------------------------------
+
+def test_round_trip_and_ground_truth_on_an_ict_identity(bench, identity):
+    source = load_generic_head()
+    names = ["jawOpen", "mouthSmile_L", "eyeBlink_L", "browInnerUp_R", "mouthFunnel", "cheekSquint_L", "noseSneer_R"]
+    shapes = {m: source.morph_targets[m] for m in names}
+    n = source.skin.n_vertices
+    there = correspond(source, identity).transfer(shapes)
+    back = correspond(Head(identity.parts, identity.feature_points, there), source).transfer(there)
+    trip = np.mean([_pyun(back[m], shapes[m], n) for m in names])
+    truth = bench.scaled_truth(source, identity, names)
+    fwd = np.mean([_pyun(there[m], truth[m], n) for m in names])
+    # Measured 2.7 % and 5.0 % (all 53 shapes on three identities: 3.2 % and 7.2 %); the
+    # first version of the method was at 13 % and 17 %.
+    assert trip < 3.5
+    assert fwd < 6.0
+
+
+def test_antialiasing_takes_the_roughness_out_of_dense_to_sparse(bench, identity):
+    source = load_generic_head()
+    coarse, kept = bench.remesh(identity)
+    assert 0.3 < coarse.skin.n_vertices / identity.skin.n_vertices < 0.37
+    assert correspond(source, identity).support == 0  # as dense as the source: off
+    names = ["jawOpen", "mouthSmile_L", "eyeBlink_L", "browInnerUp_R"]
+    truth = bench.scaled_truth(source, identity, names)
+    face = kept < 9409
+    rough = {}
+    for support in (0.0, None):
+        corr = correspond(source, coarse, antialias=support)
+        if support is None:
+            assert corr.support == pytest.approx(0.02)  # sparser than the source: on
+        cl = corr.transfer({m: source.morph_targets[m] for m in names})
+        rough[support] = np.mean([bench.roughness(cl[m]["skin"].dense(len(kept)), coarse.skin.triangles, face)
+                                  for m in names])
+    rough_truth = np.mean([bench.roughness(truth[m]["skin"].dense(source.skin.n_vertices)[kept],
+                                           coarse.skin.triangles, face) for m in names])
+    # Without the filter the field is rougher than the truth's (measured 0.145 against
+    # 0.141); with it, no rougher than the truth (0.136).
+    assert rough[0.0] > rough_truth > rough[None]
+
+
+def _angle(r):
+    return np.degrees(np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1)))
+
+
+@pytest.mark.parametrize("seed", [2000, 2001])
+def test_cloned_tables_are_mpeg4_compliant(authored_head, bench, ict, seed):
+    """Each low-level FAP moves its feature point by the same amount in the target's FAPU
+    as in the source's (rotations: the same angle; pupils: the same rim motion in IRISD;
+    the tongue roll: the same lift over the tongue's half width), within 5 %."""
+    identity = bench.ict_target(load_generic_head(), ict, seed)
+    out, warnings = clone(authored_head, identity)
     assert not warnings and len(out.fat) == len(authored_head.fat)
-    errs = []
-    for n in (3, 5, 12, 19, 31, 33, 41, 52, 59):  # skin FAPs of the mouth, lids, brows, cheeks
-        fp = FAPS[n].feature_points[0]
+    errors = {}
+    for n in range(3, 69):
+        if (n, 0) not in authored_head.fat:
+            continue
+        fap = FAPS[n]
+        fp = fap.feature_points[0]
 
-        def per_unit(h):
-            moved = apply_fat(h.fat, {k: p.vertices for k, p in h.parts.items()}, {n: 256.0}, h.fapu)
-            return (h.fp_position(fp, moved) - h.fp_position(fp)) / fap_unit(n, h.fapu)
+        def measure(h):
+            base = {k: p.vertices for k, p in h.parts.items()}
+            moved = apply_fat(h.fat, base, {n: 256.0}, h.fapu)
+            unit = fap_unit(n, h.fapu)
+            if fap.kind == "rotation":
+                part = h.feature_points[fp].part if fp != "7.1" else "skin"
+                r, _ = rigid_motion(base[part], moved[part], np.zeros(3))
+                return np.array([_angle(r) / np.degrees(256 * unit)])
+            if fap.kind == "scale":
+                part = h.feature_points[fp].part
+                return np.array([np.linalg.norm(moved[part] - base[part], axis=1).max() / unit])
+            if fap.kind == "roll":
+                lift = [h.fp_position(i, moved)[1] - h.fp_position(i)[1] for i in fap.feature_points]
+                half = abs(h.fp_position(fap.feature_points[0])[0] - h.fp_position("6.2")[0])
+                return np.array(lift) / half / unit
+            return (h.fp_position(fp, moved) - h.fp_position(fp)) / unit
 
-        a, b = per_unit(authored_head), per_unit(out)
-        errs.append(np.linalg.norm(a - b) / np.linalg.norm(a))
-    assert np.median(errs) < 0.10
+        a, b = measure(authored_head), measure(out)
+        errors[n] = float(np.linalg.norm(a - b) / np.linalg.norm(a))
+    assert len(errors) >= 60
+    bad = {n: round(100 * e, 1) for n, e in errors.items() if e > 0.05}
+    assert not bad, bad
+
+
+# --- parts and bad input -----------------------------------------------------------------
+
+def test_missing_parts_and_centres_warn_and_are_installed(authored_head):
+    target = load_generic_head()
+    target.morph_targets = {}
+    del target.parts["tongue"]
+    for i in [i for i, b in target.feature_points.items() if b.part == "tongue"] + ["7.1"]:
+        del target.feature_points[i]
+    target.parts["eye_l"].centre = None
+    parts, notes = find_parts(target)
+    assert "tongue" not in parts and parts["eye_l"].installed
+    assert np.linalg.norm(parts["eye_l"].centre - authored_head.parts["eye_l"].centre) < 1e-3  # the sphere's centre
+    out, warnings = clone(authored_head, target)
+    text = " | ".join(warnings)
+    assert "no tongue" in text and "eye_l part has no rotation centre" in text and "no 7.1" in text
+    head_turn = out.fat[(49, 0)].transforms[0]
+    assert np.linalg.norm(head_turn.centre - authored_head.fp_position("7.1")) < 1e-9  # installed as on the source
+    eye_turn = out.fat[(23, 0)].transforms[0]
+    assert eye_turn.part == "eye_l" and np.allclose(eye_turn.centre, parts["eye_l"].centre)
+
+
+def test_a_head_lacking_some_triangulation_points_uses_delaunay():
+    source = load_generic_head()
+    target = load_generic_head()
+    for i in ("3.13", "3.14", "10.9"):
+        del target.feature_points[i]
+    tri, notes = triangulation_for(source, target)
+    assert "3.13, 3.14, 10.9" in notes[0] and "Delaunay" in notes[0]
+    assert not set(tri.feature_points) & {"3.13", "3.14", "10.9"}
+    cloned = clone_targets(source, target, ["eyeBlink_L"])
+    assert _pyun(cloned["eyeBlink_L"], source.morph_targets["eyeBlink_L"], source.skin.n_vertices) < 1.0
+    tri, notes = triangulation_for(source, source, "delaunay")
+    assert len(tri.triangles) > 100 and not notes
 
 
 def test_bad_input():
     head = load_generic_head()
     bare = head.copy()
     del bare.feature_points["8.3"]
-    with pytest.raises(InputError, match="the target head lacks the feature points 8.3"):
+    del bare.feature_points["3.1"]
+    with pytest.raises(InputError, match="the target head lacks the feature points 3.1, 8.3"):
         clone_targets(head, bare)
     still = head.copy()
     still.morph_targets = {}
     with pytest.raises(InputError, match="no morph targets or animation tables to clone"):
         clone(still, head)
+    frozen = head.copy()
+    frozen.morph_targets = {"nothing": {"skin": SparseDisplacement(np.array([0]), np.zeros((1, 3)))}}
+    with pytest.raises(InputError, match="move nothing"):
+        clone(frozen, head)
+    cm = head.with_vertices({k: p.vertices * 100 for k, p in head.parts.items()})
+    with pytest.raises(InputError, match="looks like centimetres.*scale it by 0.01"):
+        clone(head, cm)
+    with pytest.raises(InputError, match="unknown triangulation"):
+        clone(head, head, triangulation="voronoi")
+
+
+def test_fmc_clone_command(tmp_path, validate_gltf):
+    from typer.testing import CliRunner
+
+    from fmc.cli import app
+    from mpeg4.io import load_head, save_head
+
+    source = load_generic_head()
+    source.morph_targets = {k: source.morph_targets[k] for k in ("jawOpen", "eyeBlink_L")}
+    target = source.with_vertices({k: p.vertices * 0.95 for k, p in source.parts.items()})
+    target.morph_targets = {}
+    save_head(source, tmp_path / "src.glb")
+    save_head(target, tmp_path / "tgt.glb")
+    out = CliRunner().invoke(app, ["clone", "--source", str(tmp_path / "src.glb"), "--target",
+                                   str(tmp_path / "tgt.glb"), "-o", str(tmp_path / "out.glb")])
+    assert out.exit_code == 0, out.output
+    head = load_head(tmp_path / "out.glb")
+    assert set(head.morph_targets) == {"jawOpen", "eyeBlink_L"}
+    assert validate_gltf(tmp_path / "out.glb")["issues"]["numErrors"] == 0
+
+
+def test_an_eye_meshed_with_the_skin_is_found_and_turned():
+    """A head given as one mesh: the eyeball is a piece of the skin holding 3.5."""
+    from mpeg4.head import FeaturePointBinding, Part
+
+    source = _with_eye_turn(load_generic_head())
+    target = load_generic_head()
+    skin, eye = target.parts["skin"], target.parts.pop("eye_l")
+    n = skin.n_vertices
+    target.parts["skin"] = Part("skin", np.r_[skin.vertices, eye.vertices], np.r_[skin.triangles, eye.triangles + n])
+    b = source.feature_points["3.5"]
+    target.feature_points["3.5"] = FeaturePointBinding("skin", tuple(v + n for v in b.vertices), b.weights)
+    target.morph_targets = {}
+    parts, notes = find_parts(target)
+    assert parts["eye_l"].part == "skin" and len(parts["eye_l"].vertices) == eye.n_vertices
+    assert "installed" in notes[0]  # a piece of a mesh has no centre of its own
+    cloned = clone_targets(source, target, ["look_up_l", "eyeBlink_L"])
+    d = cloned["look_up_l"]["skin"].dense(target.skin.n_vertices)
+    assert np.abs(d[:n]).max() == 0  # the face does not move with the eye
+    want = source.morph_targets["look_up_l"]["eye_l"].dense(eye.n_vertices)
+    assert np.abs(d[n:] - want).max() < 1e-4  # turned as the source's (about a sphere's centre)
+    # The blink moves the lid, not the eyeball under it.
+    blink = cloned["eyeBlink_L"]["skin"].dense(target.skin.n_vertices)
+    assert np.abs(blink[n:]).max() < 1e-9 and np.abs(blink[:n]).max() > 5e-3

@@ -44,11 +44,11 @@ def photos():
     return paths
 
 
-def _start(photos, fdp):
+def _start(photos, fdp, *flags):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.Popen([sys.executable, "-m", "recon", "annotate", *map(str, photos), "--fdp", str(fdp),
-                             "--no-browser"], cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                             "--no-browser", *flags], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
     ready, _, _ = select.select([proc.stdout], [], [], 60)
     line = proc.stdout.readline() if ready else ""
     if not line.startswith("annotate: "):
@@ -121,7 +121,9 @@ def _midline_reflection(front, exclude):
 
 def test_drag_guides_mirror_undo_redo_save_reload(photos, browser, tmp_path):
     fdp = tmp_path / "head.fdp.json"
-    proc, url = _start(photos, fdp)
+    # The generic head's points, whose heights agree between the photos, so that what the
+    # 3D preview refuses below is the drag alone (automatic points are tested elsewhere).
+    proc, url = _start(photos, fdp, "--no-detect")
     ARTIFACTS.mkdir(exist_ok=True)
     try:
         page = browser.new_page(viewport={"width": 1400, "height": 860})
@@ -129,7 +131,9 @@ def test_drag_guides_mirror_undo_redo_save_reload(photos, browser, tmp_path):
         page.on("pageerror", lambda e: errors.append(str(e)))
         page.goto(url)
         page.wait_for_selector("body[data-ready=true]", timeout=20000)
-        assert "generic head" in page.inner_text("#init-message")
+        message = page.inner_text("#init-message")
+        assert "generic head" in message, message
+        conf_35 = page.evaluate("() => annotate.store.confidence('front', '3.5')")
         state = {v: {i: np.array(p) for i, p in pts["points"].items()} for v, pts in _points(page).items()}
         assert len(state["front"]) == 72 and len(state["side"]) == 37
 
@@ -185,10 +189,12 @@ def test_drag_guides_mirror_undo_redo_save_reload(photos, browser, tmp_path):
         page.keyboard.press("n")
         first = page.evaluate("() => annotate.store.selected")
         assert page.locator("ol.checklist li.selected").count() == 1
+        before = page.evaluate(f"() => annotate.store.confidence('{first['view']}', '{first['id']}')")
+        assert before is not None and before < 0.5  # a guess (0) or an unsure automatic point
         page.keyboard.press("Enter")
         assert page.evaluate(f"() => annotate.store.confidence('{first['view']}', '{first['id']}')") is None
         page.keyboard.press("Control+z")
-        assert page.evaluate(f"() => annotate.store.confidence('{first['view']}', '{first['id']}')") == 0
+        assert page.evaluate(f"() => annotate.store.confidence('{first['view']}', '{first['id']}')") == before
 
         # Save, and read the file back.
         page.keyboard.press("Control+s")
@@ -198,7 +204,7 @@ def test_drag_guides_mirror_undo_redo_save_reload(photos, browser, tmp_path):
         assert np.allclose(saved.views["front"].points["9.3"], moved, atol=0.05)
         assert np.allclose(saved.views["front"].points["9.3"], _point(page, "front", "9.3"), atol=1e-6)
         assert "9.3" not in saved.views["front"].confidence  # moved by hand
-        assert saved.views["front"].confidence["3.5"] == 0  # still the generic head's guess
+        assert abs(saved.views["front"].confidence["3.5"] - conf_35) < 1e-8  # still the first guess
         assert np.allclose(saved.views["front"].points["3.6"], now["3.6"], atol=1e-6)
         assert saved.views["side"].points.keys() == state["side"].keys()
         # Photos in another folder than the file are named by their absolute path.

@@ -11,7 +11,7 @@ from PIL import Image
 from mpeg4 import InputError
 from mpeg4.io import read_fdp_json, write_fdp_json
 from mpeg4.io.obj import read_obj
-from recon.build import PhotoPair, build_head, load_pair, run_build
+from recon.build import build_head, load_pair, run_build
 from recon.example import EXAMPLE_DIR, EXAMPLE_FDP, example_camera
 
 CAM = example_camera()

@@ -13,12 +13,20 @@ def test_example_writes_a_valid_head_fdp_and_preview(tmp_path, validate_gltf):
 
     messages = []
     speak = shutil.which("espeak-ng") is not None
-    paths = run_example(tmp_path / "out", progress=messages.append, speak=speak)
+    paths = run_example(tmp_path / "out", progress=messages.append, speak=speak, texture_size=1024)
     assert messages[-1].startswith("done in")
     report = validate_gltf(paths["head"])
     assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0
     head = load_head(paths["head"])
     assert len(head.feature_points) == 84 and len(head.morph_targets) == 55
+    # The person's own shape and texture, not the generic head's.
+    from mpeg4.generic_head import load_generic_head
+
+    generic = load_generic_head()
+    ipd = lambda h: float(((h.fp_position("3.5") - h.fp_position("3.6")) ** 2).sum() ** 0.5)  # noqa: E731
+    assert abs(ipd(head) - ipd(generic)) > 0.002
+    assert head.skin.texture is not None and head.skin.texture.shape[:2] == (1024, 1024)
+    assert head.skin.uv is not None and paths["texture"].exists() and paths["obj"].exists()
     assert len(head.fat) == 66 + 15 + 7  # every low-level FAP, the visemes and the expressions
     if speak:
         assert validate_gltf(paths["animation"])["issues"]["numErrors"] == 0
@@ -28,5 +36,5 @@ def test_example_writes_a_valid_head_fdp_and_preview(tmp_path, validate_gltf):
     image = cv2.imread(str(paths["preview"]))
     assert image.shape[0] > 700 and image.shape[1] > 3 * 500  # three labelled views and a caption
     # Running again replaces the files in place.
-    again = run_example(tmp_path / "out", speak=False)
+    again = run_example(tmp_path / "out", speak=False, texture_size=256)
     assert again == {k: v for k, v in paths.items() if k in again}

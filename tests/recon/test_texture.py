@@ -4,12 +4,13 @@ import numpy as np
 import pytest
 
 from mpeg4 import InputError
+from recon.blend import blend_multiband
 from recon.build import PhotoPair, build_head, load_pair
 from recon.cameras import fit_camera
 from recon.example import EXAMPLE_FDP, example_camera
 from recon.fidelity import reprojection, seam_smoothness
-from recon.texture import (HIDDEN, FRONT, FeatureLineWarp, blend_multiband, feature_line, texture_skin,
-                           vertex_regions)
+from recon.texture import FRONT, HIDDEN, feature_line, texture_skin, vertex_regions
+from recon.warp import FeatureLineWarp
 
 
 @pytest.fixture(scope="module")

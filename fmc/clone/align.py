@@ -1,0 +1,184 @@
+"""Feature-point alignment: the target's projection moved onto the source's.
+
+The target's feature points are moved onto the source's in the alignment space and every
+other point is carried along by the piecewise-affine map over a triangulation of the
+feature points [1]_. The shipped triangulation (``fmc/data/fp_triangulation.toml``, its
+header says how it was made) is the same for every pair of heads, so the map from A to B
+is the exact inverse of the one from B to A; a frame of fixed points around the face
+closes it, beyond which nothing moves. A Delaunay triangulation of the source's points
+is the alternative.
+
+References
+----------
+.. [1] I. S. Pandžić, "Facial motion cloning", Graphical Models 65(6) (2003) 385-404.
+"""
+
+from __future__ import annotations
+
+import functools
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+
+import numpy as np
+from scipy.spatial import Delaunay
+
+from mpeg4.head import Head
+
+from .interpolate import TriangleIndex
+from .space import alignment_space
+
+__all__ = ["FPTriangulation", "load_fp_triangulation", "delaunay_fp_triangulation", "triangulation_for",
+           "vertex_positions", "folded_triangles", "warp"]
+
+
+@dataclass(frozen=True)
+class FPTriangulation:
+    """Triangles over feature points (and fixed frame points) of the alignment space.
+
+    Attributes
+    ----------
+    names : tuple of str
+        Vertex names: an FP id, ``"a|b"`` for the mean of two FPs, or a frame name.
+    members : tuple of tuple of str
+        The FPs each vertex is the mean of; empty for frame vertices.
+    at : (V, 2) float64
+        Each vertex on the generic head (frame vertices: their fixed place).
+    triangles : (T, 3) int64
+        Counter-clockwise in the space.
+    """
+
+    names: tuple[str, ...]
+    members: tuple[tuple[str, ...], ...]
+    at: np.ndarray
+    triangles: np.ndarray
+
+    @property
+    def frame(self) -> np.ndarray:
+        """(V,) bool: the fixed frame vertices."""
+        return np.array([not m for m in self.members])
+
+    @property
+    def feature_points(self) -> set[str]:
+        return {p for m in self.members for p in m}
+
+    def subset(self, available: set[str]) -> FPTriangulation:
+        """The Delaunay triangulation (of the generic head's places) of the vertices whose
+        FPs are all in ``available``, and the frame; the same for every pair of heads."""
+        keep = [k for k, m in enumerate(self.members) if all(p in available for p in m)]
+        tri = Delaunay(self.at[keep]).simplices
+        return _oriented(FPTriangulation(tuple(self.names[k] for k in keep), tuple(self.members[k] for k in keep),
+                                         self.at[keep], tri))
+
+
+def _oriented(t: FPTriangulation) -> FPTriangulation:
+    a, b, c = (t.at[t.triangles[:, j]] for j in range(3))
+    flip = _cross(b - a, c - a) < 0
+    tri = t.triangles.copy()
+    tri[flip] = tri[flip][:, ::-1]
+    return FPTriangulation(t.names, t.members, t.at, tri)
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+
+@functools.lru_cache(maxsize=1)
+def load_fp_triangulation() -> FPTriangulation:
+    """The shipped triangulation (``fmc/data/fp_triangulation.toml``)."""
+    data = tomllib.loads(resources.files("fmc").joinpath("data/fp_triangulation.toml").read_text())
+    names, members, at = [], [], []
+    for name, v in data["vertices"].items():
+        names.append(name)
+        members.append(tuple(v.get("points", ())))
+        at.append(v["at"] if "points" in v else v["frame"])
+    index = {n: k for k, n in enumerate(names)}
+    tri = np.array([[index[v] for v in face] for face in data["triangles"]["faces"]], dtype=np.int64)
+    return FPTriangulation(tuple(names), tuple(members), np.array(at, dtype=np.float64), tri)
+
+
+def delaunay_fp_triangulation(head: Head, available: set[str]) -> FPTriangulation:
+    """Delaunay triangulation of ``head``'s own places of the shipped vertices whose FPs
+    are in ``available``, with the frame."""
+    base = load_fp_triangulation()
+    keep = [k for k, m in enumerate(base.members) if all(p in available for p in m)]
+    sub = FPTriangulation(tuple(base.names[k] for k in keep), tuple(base.members[k] for k in keep),
+                          base.at[keep], np.zeros((0, 3), dtype=np.int64))
+    pos = vertex_positions(head, sub)[:, :2]
+    return _oriented(FPTriangulation(sub.names, sub.members, pos, Delaunay(pos).simplices))
+
+
+def triangulation_for(source: Head, target: Head, method: str = "mpeg4") -> tuple[FPTriangulation, list[str]]:
+    """The triangulation to align ``target`` onto ``source`` with, and warnings.
+
+    ``method`` is ``"mpeg4"`` (the shipped one; a Delaunay triangulation of the generic
+    head's places of the points both heads have when one lacks some) or ``"delaunay"``
+    (of the source's own points).
+    """
+    base = load_fp_triangulation()
+    have = {i for i, b in source.feature_points.items() if b.part == "skin"} & \
+           {i for i, b in target.feature_points.items() if b.part == "skin"}
+    if method == "delaunay":
+        return delaunay_fp_triangulation(source, have), []
+    if method != "mpeg4":
+        from mpeg4.errors import InputError
+
+        raise InputError(f"unknown triangulation {method!r}", fix="use 'mpeg4' or 'delaunay'")
+    missing = sorted(base.feature_points - have, key=lambda i: tuple(int(x) for x in i.split(".")))
+    if not missing:
+        return base, []
+    return base.subset(have), [f"the feature points {', '.join(missing)} are not on both heads' skins: the alignment "
+                               "uses a Delaunay triangulation of the others"]
+
+
+def vertex_positions(head: Head, tri: FPTriangulation) -> np.ndarray:
+    """(V, 3) the triangulation's vertices on ``head``: angle, height and radius (frame
+    vertices: their fixed place, radius NaN)."""
+    out = np.full((len(tri.names), 3), np.nan)
+    for k, m in enumerate(tri.members):
+        if m:
+            out[k] = alignment_space(head, np.array([head.fp_position(p) for p in m])).mean(axis=0)
+        else:
+            out[k, :2] = tri.at[k]
+    return out
+
+
+def folded_triangles(tri: FPTriangulation, positions: np.ndarray) -> list[tuple[str, str, str]]:
+    """Triangles whose orientation is reversed (or flat) at ``positions`` (V, 2): there
+    the map folds. A head whose points are misplaced shows here."""
+    a, b, c = (positions[tri.triangles[:, j], :2] for j in range(3))
+    bad = np.flatnonzero(_cross(b - a, c - a) <= 0)
+    return [tuple(tri.names[v] for v in tri.triangles[t]) for t in bad]
+
+
+def warp(points: np.ndarray, tri: FPTriangulation, from_positions: np.ndarray, to_positions: np.ndarray,
+         values: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """Carry (N, 2) ``points`` by the piecewise-affine map taking the triangulation's
+    vertices ``from_positions`` (V, 2) to ``to_positions`` (V, 2).
+
+    Points beyond the triangulation (outside the frame) stay where they are.
+
+    Parameters
+    ----------
+    values : (V, C) float, optional
+        Per-vertex values interpolated at the points by the same barycentric weights
+        (beyond the triangulation: the mean of the frame's values).
+
+    Returns
+    -------
+    moved : (N, 2) float64
+    interpolated : (N, C) float64 or None
+    """
+    points = np.asarray(points, dtype=np.float64)
+    index = TriangleIndex(from_positions[:, :2], tri.triangles)
+    tri_of, bary = index.locate(points)
+    inside = tri_of >= 0
+    moved = points.copy()
+    corners = tri.triangles[tri_of[inside]]
+    moved[inside] = np.einsum("nj,njc->nc", bary[inside], to_positions[corners, :2])
+    out = None
+    if values is not None:
+        values = np.asarray(values, dtype=np.float64).reshape(len(from_positions), -1)
+        out = np.tile(values[tri.frame].mean(axis=0), (len(points), 1))
+        out[inside] = np.einsum("nj,njc->nc", bary[inside], values[corners])
+    return moved, out

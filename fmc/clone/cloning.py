@@ -1,0 +1,452 @@
+"""Facial Motion Cloning: the source's morph targets and animation tables on another head.
+
+:func:`correspond` matches the two heads once (the steps of the method, each its own
+function in this package); the :class:`Correspondence` then carries any number of
+morph targets across, and :func:`clone` does the whole job for a head's morph targets
+and Facial Animation Tables.
+
+References
+----------
+.. [1] I. S. Pandžić, "Facial motion cloning", Graphical Models 65(6) (2003) 385-404.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import sparse
+
+from mpeg4.catalogue import FAPS, FAPU_DEFINITIONS, FP_IDS
+from mpeg4.errors import InputError
+from mpeg4.head import Head, SparseDisplacement
+
+from .align import folded_triangles, triangulation_for, vertex_positions, warp
+from .interpolate import interpolation_matrix
+from .parts import PartRef, feature_point_pins, find_parts, part_correspondence, transfer_part_motion
+from .regions import (LIP_FPS, face_scale, lip_classes, lip_sides_on_mesh, lip_vertex_classes, normalisation,
+                      region_scales)
+from .space import SPACE_FPS, alignment_space
+
+__all__ = ["REQUIRED_FPS", "ANTIALIAS_SUPPORT", "check_head", "Correspondence", "correspond", "align_target",
+           "lip_sides", "skin_weights", "pin_feature_points", "clone_targets", "clone"]
+
+#: Feature points the method cannot do without: the FAPU and the alignment space.
+REQUIRED_FPS = tuple(sorted({p for d in FAPU_DEFINITIONS.values() for p in (d.first, d.second)} | set(SPACE_FPS),
+                            key=FP_IDS.index))
+
+#: Default radius of the anti-aliasing disc in the alignment space.
+ANTIALIAS_SUPPORT = 0.02
+
+# Eye separation (ES0) of a head in metres lies well inside this range; outside it the
+# head is in other units.
+_ES0_RANGE = (0.03, 0.15)
+
+# Source triangles spanning more angle than this cross the back of the head (where the
+# angle wraps) or surround the axis at the crown: in the plane they would cover the face.
+_MAX_TRIANGLE_ANGLE = np.pi
+
+# How far along the mesh (in MW0) a lip's feature points claim vertices for their lip.
+_LIP_REACH = 0.5
+
+# Anti-aliasing turns itself on when the target's edges are this much longer than the
+# source's (in the alignment space, over the face).
+_SPARSER = 1.5
+
+
+def check_head(head: Head, name: str) -> None:
+    """Raise :class:`InputError` if ``head`` lacks a feature point the method needs (all
+    of them named) or is not in metres."""
+    missing = [i for i in REQUIRED_FPS if i not in head.feature_points]
+    if missing:
+        raise InputError(f"the {name} head lacks the feature points {', '.join(missing)}, which cloning needs "
+                         "(the FAPU and the alignment space)",
+                         fix="place them (recon annotate, or in its fdp.json) before cloning")
+    es = float(abs(head.fp_position("3.5")[0] - head.fp_position("3.6")[0]))
+    lo, hi = _ES0_RANGE
+    if not lo <= es <= hi:
+        unit = "centimetres" if 100 * lo <= es <= 100 * hi else "millimetres" if 1000 * lo <= es <= 1000 * hi else None
+        guess = f"; it looks like {unit}" if unit else ""
+        factor = {"centimetres": "0.01", "millimetres": "0.001"}.get(unit, "the right factor")
+        raise InputError(f"the {name} head's pupils are {es:.4g} units apart, not 0.03-0.15 m{guess}",
+                         fix=f"give the head in metres (scale it by {factor})")
+
+
+def _median_edge(space: np.ndarray, triangles: np.ndarray) -> float:
+    """Median edge length over the face (angle within ±1, between chin and hairline)."""
+    e = np.r_[triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]
+    a, b = space[e[:, 0], :2], space[e[:, 1], :2]
+    mid = 0.5 * (a + b)
+    face = (np.abs(mid[:, 0]) < 1.0) & (mid[:, 1] > 0) & (mid[:, 1] < 1.4)
+    return float(np.median(np.linalg.norm(a - b, axis=1)[face])) if face.any() else np.nan
+
+
+@dataclass
+class Correspondence:
+    """How every target vertex takes its motion from the source.
+
+    Attributes
+    ----------
+    source, target : Head
+    skin : scipy.sparse.csr_matrix
+        (target skin vertices, source skin vertices) interpolation weights.
+    source_scale, target_scale : (N, 3) float64
+        Per-vertex normalisation of the two skins.
+    parts : list of (PartRef, PartRef, scipy.sparse.csr_matrix)
+        Source part, target part and their correspondence.
+    support : float
+        Anti-aliasing radius used (0: none).
+    warnings : list of str
+        What the heads lack and what was done about it; :meth:`transfer` adds the
+        source parts it had to leave out.
+    unmatched : set of str
+        Source parts the target has nothing for.
+    """
+
+    source: Head
+    target: Head
+    skin: sparse.csr_matrix
+    source_scale: np.ndarray
+    target_scale: np.ndarray
+    parts: list[tuple[PartRef, PartRef, sparse.csr_matrix]] = field(default_factory=list)
+    support: float = 0.0
+    warnings: list[str] = field(default_factory=list)
+    unmatched: set[str] = field(default_factory=set)
+
+    def transfer(self, targets: Mapping[str, Mapping[str, SparseDisplacement]], tol: float = 1e-7
+                 ) -> dict[str, dict[str, SparseDisplacement]]:
+        """The morph targets ``targets`` of the source (name → part → displacement, metres)
+        on the target; vertices moving less than ``tol`` metres are left out."""
+        names = list(targets)
+        n_s = self.source.skin.n_vertices
+        left_out = sorted({p for t in targets.values() for p, d in t.items()
+                           if p in self.unmatched and np.abs(d.vectors).max(initial=0) > 0})
+        if left_out:
+            note = f"the target has no {', '.join(left_out)}: their motion is left out"
+            if note not in self.warnings:
+                self.warnings.append(note)
+        result: dict[str, dict[str, np.ndarray]] = {n: {} for n in names}
+        for start in range(0, len(names), 32):  # a block at a time keeps the dense arrays small
+            block = names[start:start + 32]
+            motion = np.zeros((n_s, 3 * len(block)))
+            for j, n in enumerate(block):
+                if "skin" in targets[n]:
+                    motion[:, 3 * j:3 * j + 3] = targets[n]["skin"].dense(n_s) / self.source_scale
+            moved = self.skin @ motion
+            for j, n in enumerate(block):
+                result[n]["skin"] = moved[:, 3 * j:3 * j + 3] * self.target_scale
+        for s, t, w in self.parts:
+            src_pts, tgt_pts = s.points(self.source), t.points(self.target)
+            n_part = self.source.parts[s.part].n_vertices
+            for n in names:
+                d = targets[n].get(s.part)
+                if d is None:
+                    continue
+                disp = d.dense(n_part)[s.vertices]
+                if not np.abs(disp).max(initial=0) > 0:
+                    continue
+                out = result[n].setdefault(t.part, np.zeros((self.target.parts[t.part].n_vertices, 3)))
+                out[t.vertices] = transfer_part_motion(src_pts, disp, s, tgt_pts, t, w)
+        return {n: {p: SparseDisplacement.from_dense(v, tol=tol) for p, v in parts.items()} for n, parts in result.items()}
+
+
+def correspond(source: Head, target: Head, antialias: float | None = None, triangulation: str = "mpeg4"
+               ) -> Correspondence:
+    """Match ``target`` to ``source``: the steps of the method up to the interpolation weights.
+
+    Parameters
+    ----------
+    source, target : Head
+        Both with the :data:`REQUIRED_FPS`, in metres.
+    antialias : float, optional
+        Radius of the anti-aliasing disc in the alignment space (0 for none). By default
+        :data:`ANTIALIAS_SUPPORT` when the target's mesh is sparser than the source's
+        (edges :data:`_SPARSER` times as long over the face), else none.
+    triangulation : {"mpeg4", "delaunay"}
+        The feature-point triangulation for the alignment (see :mod:`fmc.clone.align`).
+    """
+    check_head(source, "source")
+    check_head(target, "target")
+    notes: list[str] = []
+    # 1. Normalisation.
+    s_scale, t_scale = normalisation(source), normalisation(target)
+    # 2. The alignment space.
+    s_space, t_space = alignment_space(source, source.skin.vertices), alignment_space(target, target.skin.vertices)
+    # 3. Feature-point alignment of the target onto the source.
+    tri, more = triangulation_for(source, target, triangulation)
+    notes += more
+    aligned, depth, more = align_target(source, target, tri, s_space, t_space)
+    notes += more
+    # 7. Parts (found first: pieces of the skin that are eyes or teeth leave the skin's step).
+    s_parts, more = find_parts(source)
+    notes += [f"source: {m}" for m in more]
+    t_parts, more = find_parts(target)
+    notes += [f"target: {m}" for m in more]
+    # 6. Lips.
+    s_lip, t_lip, more = lip_sides(source, target, s_space, t_space)
+    notes += more
+    # 5. Anti-aliasing: on by default when the target is sparser.
+    if antialias is None:
+        sparser = _median_edge(t_space, target.skin.triangles) / _median_edge(s_space, source.skin.triangles)
+        antialias = ANTIALIAS_SUPPORT if sparser > _SPARSER else 0.0
+    # 4. Interpolation.
+    skin = pin_feature_points(skin_weights(source, s_space, aligned, depth, s_lip, t_lip, _in_skin(source, s_parts),
+                                           _in_skin(target, t_parts), antialias), source, target)
+    pairs = [(s, t_parts[k], part_correspondence(source, s, target, t_parts[k]))
+             for k, s in s_parts.items() if k in t_parts]
+    unmatched = {s_parts[k].part for k in set(s_parts) - set(t_parts) if s_parts[k].part != "skin"}
+    return Correspondence(source, target, skin, s_scale, t_scale, pairs, float(antialias), notes, unmatched)
+
+
+def _in_skin(head: Head, parts: Mapping[str, PartRef]) -> np.ndarray:
+    """(N,) bool: skin vertices that belong to a part (an eyeball meshed with the skin)."""
+    out = np.zeros(head.skin.n_vertices, bool)
+    for p in parts.values():
+        if p.part == "skin":
+            out[p.vertices] = True
+    return out
+
+
+def lip_sides(source: Head, target: Head, source_space: np.ndarray, target_space: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """(N_s,) and (N_t,) lip classes of the two skins (+1 upper, −1 lower, 0 neither), each
+    by its own feature points, and a warning when they cannot be told apart.
+
+    The lips' zone is the polygon of their feature points (:func:`lip_classes`); inside
+    it a vertex is on the lip whose feature points are nearer along the mesh
+    (:func:`lip_sides_on_mesh`; the lower lip's inner surface curls up behind the upper
+    lip, above the line where they meet), else on its side of that line.
+    """
+    if not all(i in source.feature_points and i in target.feature_points for i in LIP_FPS):
+        missing = [i for i in LIP_FPS if i not in source.feature_points or i not in target.feature_points]
+        return (np.zeros(len(source_space)), np.zeros(len(target_space)),
+                [f"the lips are not told apart: {', '.join(missing)} are missing"])
+    sides = []
+    for head, space in ((source, source_space), (target, target_space)):
+        fps = dict(zip(LIP_FPS, alignment_space(head, np.array([head.fp_position(i) for i in LIP_FPS]))))
+        zone = lip_classes(space, fps)
+        along = lip_sides_on_mesh(head, _LIP_REACH * head.fapu.MW0)
+        sides.append(lip_vertex_classes(head, np.where(zone != 0, np.where(along != 0, along, zone), 0.0)))
+    return sides[0], sides[1], []
+
+
+def pin_feature_points(weights: sparse.csr_matrix, source: Head, target: Head) -> sparse.csr_matrix:
+    """``weights`` with the target skin's feature points taking the source's exactly (the
+    points are known to correspond; those between the triangulation's vertices, such as
+    the inner lips and the chin boss, would otherwise miss by a little). See
+    :func:`fmc.clone.parts.feature_point_pins`."""
+    out = sparse.lil_matrix(weights)
+    for v, cols in feature_point_pins(source, target, "skin", "skin").items():
+        out.rows[v] = sorted(cols)
+        out.data[v] = [cols[c] for c in sorted(cols)]
+    return out.tocsr()
+
+
+def skin_weights(source: Head, source_space: np.ndarray, aligned: np.ndarray, depth: np.ndarray,
+                 source_lip: np.ndarray, target_lip: np.ndarray, source_parts: np.ndarray, target_parts: np.ndarray,
+                 support: float) -> sparse.csr_matrix:
+    """(N_t, N_s) weights taking the source skin's values to the target skin's vertices.
+
+    Each lip's target vertices take nothing from the other lip's source vertices; skin
+    vertices that belong to parts (``*_parts`` masks) neither give nor take.
+    """
+    tris = source.skin.triangles
+    ang = source_space[tris, 0]
+    keep = (ang.max(axis=1) - ang.min(axis=1) < _MAX_TRIANGLE_ANGLE) & ~source_parts[tris].any(axis=1)
+    height = 0.5 * (source.fp_position("4.1")[1] + source.fp_position("4.2")[1]) - source.fp_position("2.1")[1]
+    n_t = len(aligned)
+    out = sparse.csr_matrix((n_t, len(source_space)))
+    for side, other in ((0.0, None), (1.0, -1.0), (-1.0, 1.0)):
+        mine = np.flatnonzero((target_lip == side) & ~target_parts)
+        if not len(mine):
+            continue
+        w = interpolation_matrix(aligned[mine], depth[mine], source_space, tris[keep], len(source_space), height,
+                                 forbidden=None if other is None else source_lip == other, support=support)
+        rows = sparse.csr_matrix((np.ones(len(mine)), (mine, np.arange(len(mine)))), shape=(n_t, len(mine)))
+        out = out + rows @ w
+    return out.tocsr()
+
+
+def align_target(source: Head, target: Head, tri, source_space: np.ndarray, target_space: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """The target's skin vertices in the source's alignment space.
+
+    Returns
+    -------
+    points : (N, 2) float64
+        Angle and height, carried by the feature-point warp.
+    depth : (N,) float64
+        Radius in the source's terms: the target's, times the ratio of the two heads'
+        radii interpolated (as its logarithm) from the triangulation's vertices.
+    warnings : list of str
+        Triangles turned over on either head.
+    """
+    notes = []
+    s_pos, t_pos = vertex_positions(source, tri), vertex_positions(target, tri)
+    for who, pos in (("source", s_pos), ("target", t_pos)):
+        folded = folded_triangles(tri, pos)
+        if folded:
+            notes.append(f"on the {who} the feature-point triangles {'; '.join(' '.join(f) for f in folded[:4])} "
+                         "are turned over: check those points' places")
+    # The radii's ratio interpolated as a logarithm: the map back (source onto target)
+    # then scales by exactly the inverse.
+    fp_rows = ~tri.frame
+    log_ratio = np.zeros(len(tri.names))
+    log_ratio[fp_rows] = np.log(s_pos[fp_rows, 2] / t_pos[fp_rows, 2])
+    log_ratio[tri.frame] = np.median(log_ratio[fp_rows])
+    aligned, log_rho = warp(target_space[:, :2], tri, t_pos, s_pos, values=log_ratio)
+    return aligned, target_space[:, 2] * np.exp(log_rho[:, 0]), notes
+
+
+def clone_targets(source: Head, target: Head, names: Iterable[str] | None = None, antialias: float | None = None,
+                  triangulation: str = "mpeg4") -> dict[str, dict[str, SparseDisplacement]]:
+    """The source's morph targets cloned onto the target.
+
+    Parameters
+    ----------
+    source, target : Head
+        Both with the :data:`REQUIRED_FPS`, in metres; the source with morph targets.
+    names : iterable of str, optional
+        Targets to clone (all by default).
+    antialias, triangulation
+        See :func:`correspond`.
+
+    Returns
+    -------
+    dict
+        Target name → part → displacement, for the target head.
+    """
+    names = list(source.morph_targets if names is None else names)
+    if not names:
+        raise InputError("the source head has no morph targets to clone", fix="give a source with motion")
+    unknown = [n for n in names if n not in source.morph_targets]
+    if unknown:
+        raise InputError(f"the source head has no morph targets {', '.join(unknown)}",
+                         fix=f"choose from {', '.join(sorted(source.morph_targets)[:8])} ...")
+    corr = correspond(source, target, antialias=antialias, triangulation=triangulation)
+    return corr.transfer({n: source.morph_targets[n] for n in names})
+
+
+def _unit_correction(source: Head, target: Head, fap: int) -> np.ndarray:
+    """(3,) per-axis factor making a cloned table of low-level ``fap`` move its feature
+    point by the target's own FAP unit.
+
+    A table's displacements are per FAP unit (reference section 5): the FP must move by
+    the same multiple of the target's unit as of the source's. The region normalisation
+    scales by the region's FAPU instead (e.g. the lids' IRISD0 against the region's
+    ENS0); this factor is the ratio of the two at the FP. Angle units (AU) need none,
+    but for the tongue roll, a mesh table: its lift is the angle times the tongue's half
+    width, so that ratio replaces the region's in y.
+    """
+    entry = FAPS[fap]
+    if fap < 3 or not entry.unit:
+        return np.ones(3)
+    fp = entry.feature_points[0]
+    if fp not in source.feature_points or fp not in target.feature_points:
+        return np.ones(3)
+    # The scale the cloning used at the FP (parts inside the head take their region's).
+    scales = [region_scales(h, h.fp_position(fp)[None])[0] for h in (source, target)]
+    if entry.kind == "roll":
+        # An angle: the sides lift by the angle times the tongue's half width (6.3 to 6.2).
+        if "6.2" not in source.feature_points or "6.2" not in target.feature_points:
+            return np.ones(3)
+        half = [abs(h.fp_position(fp)[0] - h.fp_position("6.2")[0]) for h in (source, target)]
+        return np.r_[1.0, (half[1] / half[0]) / (scales[1][1] / scales[0][1]), 1.0]
+    if entry.unit == "AU":
+        return np.ones(3)
+    units = source.fapu.unit(entry.unit), target.fapu.unit(entry.unit)
+    return (units[1] / units[0]) / (scales[1] / scales[0])
+
+
+def clone(source: Head, target: Head, antialias: float | None = None, triangulation: str = "mpeg4"
+          ) -> tuple[Head, list[str]]:
+    """The target with the source's morph targets and Facial Animation Tables cloned onto it.
+
+    Morph targets keep their names. The FAT's mesh tables travel as morph targets
+    (:func:`mpeg4.fat.fat_to_morph_targets`, in the source's FAPU), are cloned, scaled per
+    FAP so its feature point moves by the target's FAP unit, and rebuilt in the target's
+    FAPU; its transforms are re-centred on the target: the eyes about the target's eye
+    centres, the head about the target's 7.1 (both installed when the target has none).
+
+    Parameters
+    ----------
+    source, target : Head
+    antialias, triangulation
+        See :func:`correspond`.
+
+    Returns
+    -------
+    head : Head
+    warnings : list of str
+        What the target lacks and what was done about it.
+    """
+    from mpeg4.fat import FAT, FaceDefTable, FaceDefTransform, fat_from_morph_targets, fat_to_morph_targets
+
+    targets = dict(source.morph_targets)
+    specs = []
+    if source.fat is not None and len(source.fat):
+        fat_targets, specs = fat_to_morph_targets(source.fat, source.fapu)
+        targets.update(fat_targets)
+    has_transforms = source.fat is not None and any(t.transforms for t in source.fat.values())
+    moving = any(np.abs(d.vectors).max(initial=0) > 0 for t in targets.values() for d in t.values())
+    if not moving and not has_transforms:
+        raise InputError("the source head has no morph targets or animation tables to clone"
+                         + (" (its morph targets move nothing)" if targets else ""),
+                         fix="give a source with motion (fmc author, or a GLB with morph targets)")
+    corr = correspond(source, target, antialias=antialias, triangulation=triangulation)
+    cloned = corr.transfer(targets) if targets else {}
+    warnings = list(corr.warnings)
+    out = target.copy()
+    out.morph_targets = {n: cloned[n] for n in source.morph_targets}
+    if source.fat is not None and len(source.fat):
+        s_parts = {p.part: p for p, _, _ in corr.parts}
+        t_of = {p.part: t for p, t, _ in corr.parts}
+        turns_head = any(t.part is None for table in source.fat.values() for t in table.transforms)
+        centre_71 = _head_centre(source, target, warnings) if turns_head else None
+        transforms = FAT()
+        for key, table in source.fat.items():
+            moved = []
+            for t in table.transforms:
+                if t.part is None:
+                    if centre_71 is None:
+                        continue
+                    moved.append(FaceDefTransform(None, t.kind, centre_71, t.axis, t.amount))
+                    continue
+                if t.part not in s_parts or t.part not in t_of or t_of[t.part].part == "skin":
+                    warnings.append(f"FAP {key[0]}: the target has no part for '{t.part}'; its {t.kind} is left out")
+                    continue
+                src, dst = s_parts[t.part], t_of[t.part]
+                # The centre kept where it is relative to the part's own (an eyeball turns
+                # about its centre; a pupil would scale about a point in front of it).
+                centre = dst.centre + (t.centre - src.centre) / src.scale * dst.scale
+                moved.append(FaceDefTransform(dst.part, t.kind, centre, t.axis, t.amount))
+            transforms.add(FaceDefTable(table.fap, table.high_level, [], moved))
+        fat_targets, factors = {}, {}
+        for s in specs:
+            if s.fap not in factors:
+                factors[s.fap] = _unit_correction(source, target, s.fap) if s.fap > 2 else np.ones(3)
+            k = factors[s.fap]
+            fat_targets[s.target] = {p: SparseDisplacement(d.indices, d.vectors * k) for p, d in cloned[s.target].items()}
+        out.fat = fat_from_morph_targets(fat_targets, specs, target.fapu, transforms)
+        for key, table in transforms.items():
+            if key not in out.fat:
+                out.fat.add(table)
+    out.metadata = dict(out.metadata, cloned_from=str(source.metadata.get("name", "source head")))
+    return out, sorted(set(warnings))
+
+
+def _head_centre(source: Head, target: Head, warnings: list[str]) -> np.ndarray | None:
+    """The target's head rotation centre 7.1; installed from the source's when missing."""
+    if "7.1" in target.feature_points:
+        return target.fp_position("7.1")
+    if "7.1" not in source.feature_points:
+        warnings.append("neither head has 7.1 (the head rotation centre): head rotations are left out")
+        return None
+    # The source's 7.1 relative to the two pupils' midpoint, in the upper face's FAPU terms.
+    o_s = 0.5 * (source.fp_position("3.5") + source.fp_position("3.6"))
+    o_t = 0.5 * (target.fp_position("3.5") + target.fp_position("3.6"))
+    c = o_t + (source.fp_position("7.1") - o_s) / face_scale(source) * face_scale(target)
+    warnings.append("the target has no 7.1 (the head rotation centre): installed at "
+                    + ", ".join(f"{x * 1000:.1f}" for x in c) + " mm, placed as on the source")
+    return c

@@ -1,0 +1,87 @@
+"""Automatic MPEG-4 feature points on a front and a side photo.
+
+:func:`detect` places every point the two photos can show, each with a confidence in
+[0, 1] and the way it was found, so that a person only corrects them
+(``recon annotate`` starts from them):
+
+- front photo (:mod:`recon.landmarks.front`): MediaPipe's face mesh and irises
+  (:mod:`recon.landmarks.models`), mapped to the MPEG-4 points by a table stored as data
+  (:mod:`recon.landmarks.mapping`, ``recon/data/facemesh_mpeg4.csv``); the points no face
+  mesh has (hairline, top of the head, ears) from the head's silhouette and colours, or
+  from the face's proportions;
+- side photo (:mod:`recon.landmarks.side`): the profile curve of the head's silhouette,
+  facing either way, with the heights of the points both photos show carried over from
+  the front.
+
+The models run offline from the ``mediapipe`` wheel; without it :func:`detect` raises
+:class:`~recon.landmarks.models.MediapipeMissing` saying how to install it.
+"""
+
+from __future__ import annotations
+
+import os
+
+from mpeg4.io.fdp_json import FdpFile, ViewAnnotation
+
+from .front import SOURCES, ViewPoints, detect_front
+from .mapping import FpMapping, apply_mapping, load_mapping
+from .models import MediapipeMissing, mediapipe_available
+from .side import detect_side, facing_of
+
+__all__ = ["detect", "detect_images", "detect_front", "detect_side", "facing_of", "ViewPoints", "SOURCES",
+           "load_mapping", "apply_mapping", "FpMapping", "MediapipeMissing", "mediapipe_available"]
+
+
+def detect_images(front, side, front_name: str = "front photo", side_name: str = "side photo") -> FdpFile:
+    """:func:`detect` on (H, W, 3) uint8 RGB arrays.
+
+    Returns
+    -------
+    FdpFile
+        ``views["front"]`` and ``views["side"]`` with points and confidences;
+        ``metadata["landmarks"]``: per view, the source of each point
+        (:data:`SOURCES`), and the side the side photo shows.
+    """
+    f = detect_front(front, front_name)
+    s, shown = detect_side(side, f, front.shape[0], side_name)
+    views = {}
+    for name, v, img, path in (("front", f, front, front_name), ("side", s, side, side_name)):
+        views[name] = ViewAnnotation(image=None, width=int(img.shape[1]), height=int(img.shape[0]),
+                                     points=dict(v.points), confidence=dict(v.confidence))
+    meta = {"landmarks": {"method": "recon.landmarks (MediaPipe face mesh + silhouettes)",
+                          "side_shows": shown,
+                          "source": {"front": dict(f.source), "side": dict(s.source)}}}
+    return FdpFile(views=views, metadata=meta)
+
+
+def detect(front_path: str | os.PathLike, side_path: str | os.PathLike) -> FdpFile:
+    """Feature points on a front and a side photo, with confidences.
+
+    Parameters
+    ----------
+    front_path, side_path : path
+        The photos (JPEG/PNG; EXIF orientation applied, as the annotation page shows them).
+
+    Returns
+    -------
+    FdpFile
+        See :func:`detect_images`; each view's ``image`` is the path given.
+
+    Raises
+    ------
+    mpeg4.errors.InputError
+        A photo cannot be read, or shows no face (front) or no head (side), or the two
+        look swapped; the message names the photo and the fix.
+    MediapipeMissing
+        mediapipe is not installed.
+    """
+    from recon.photos import check_photo, read_photo
+
+    front = read_photo(front_path, "front photo")
+    side = read_photo(side_path, "side photo")
+    check_photo(front, os.fspath(front_path))
+    check_photo(side, os.fspath(side_path))
+    fdp = detect_images(front, side, os.fspath(front_path), os.fspath(side_path))
+    fdp.views["front"].image = os.fspath(front_path)
+    fdp.views["side"].image = os.fspath(side_path)
+    return fdp

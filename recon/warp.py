@@ -1,0 +1,367 @@
+"""The side photo deformed onto the front photo's frame along a feature line.
+
+The warp of Lee et al.'s texture generation (section 2.2.1): the side photo's feature line
+— points from the top of the skull down the side of the face and the neck — is laid onto
+the same line in the front photo, and what lies behind the line unrolls outwards beside the
+face. :class:`FeatureLineWarp` is that map, piecewise affine over a triangulation of control
+points on and around the line, used both ways: side-photo pixels of the head's vertices to
+the composite frame (their texture coordinates), and composite pixels back to the side photo
+(the warped image).
+
+References
+----------
+W.-S. Lee and N. Magnenat-Thalmann, "Fast head modeling for animation", Image and Vision
+Computing 18(4), 2000, section 2.2.1.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mpeg4.errors import InputError
+
+from .bake import rasterize
+from .cameras import FittedCamera
+
+__all__ = ["FEATURE_LINE", "FeatureLineWarp", "sections"]
+
+#: The feature points of the feature line on the face's left, from the top of the skull to
+#: the angle of the jaw (Lee et al.); below the jaw the line runs down the neck where it
+#: faces half way between the photos (:func:`recon.texture.feature_line`). The right line
+#: is the mirror image.
+FEATURE_LINE = ("11.4", "11.3", "4.5", "10.9", "10.7", "2.13")
+
+# Arc lengths (metres) behind (+) and in front of (−) the feature line at which a row's
+# control points are placed; _FAR makes the warp cover the whole photo.
+_ARC = (-0.06, -0.03, -0.015, 0.0, 0.01, 0.02, 0.035, 0.055, 0.08, 0.11, 0.15, 0.2, 0.26)
+_FAR = 1.5
+# Rows of control points added above the top and below the bottom of the line (metres).
+_ABOVE, _BELOW = (0.05, 1.0), (0.02, 0.04, 0.06, 0.09, 0.12, 0.16, 1.0)
+
+
+class FeatureLineWarp:
+    """A side photo deformed onto the front photo's frame along a feature line.
+
+    The control points lie on rows, one through each feature-line point and through
+    points between them (every ``row_step`` metres), more below the chin and above the
+    skull. A row follows the head's horizontal outline at its height (the convex hull of
+    the skin's cross-section) backwards and forwards from the line: each of its points is
+    placed in the side photo where the side camera sees that point of the outline, and in
+    the composite frame where the front camera sees it — up to the outline's silhouette in
+    the front view; behind it the outline unrolls outwards at the front photo's scale, so
+    that the back of the head spreads beside the face. Beyond the outline's ends (the back
+    and front midlines) and on rows with no outline (above the skull), rows continue
+    straight along the head's depth (side photo) and width (front photo). Every row keeps
+    its anchor's height in each photo, and consecutive rows are joined by two triangles per
+    pair of neighbouring points, so no triangle can fold; each triangle of the side photo
+    maps affinely onto the same triangle of composite points — one piecewise-affine map,
+    exactly invertible, so vertex coordinates (:meth:`forward`) and the warped image
+    (:meth:`inverse_map`) agree, and near the line they agree with the front photo's own
+    projection of the head.
+
+    Parameters
+    ----------
+    side, front : FittedCamera
+        The cameras of the side photo (or of the flipped side photo) and of the front one.
+    line : (K, 3) float
+        The feature line, top to bottom, metres (:func:`feature_line`).
+    line_fp : (K,) bool
+        Which of its points are feature points (they are never left out).
+    outward : {+1, -1}
+        +1 when the line is on the face's left (behind it lies +x), -1 on its right.
+    skin : (vertices, triangles), optional
+        The head's skin, for the outlines; without it every row is straight.
+    row_step : float
+        Largest height step between rows along the line, metres.
+    """
+
+    def __init__(self, side: FittedCamera, front: FittedCamera, line: np.ndarray, line_fp: np.ndarray,
+                 outward: float, skin: tuple[np.ndarray, np.ndarray] | None = None, row_step: float = 0.01):
+        where = "texture, feature line"
+        self._side, self._front, self._sigma = side, front, float(outward)
+        X = np.asarray(line, dtype=np.float64)
+        line_fp = np.asarray(line_fp, dtype=bool)
+        # Anchors: the line's points and points between them, then rows below its end.
+        anchors, is_fp = [X[0]], [bool(line_fp[0])]
+        for a, b, fb in zip(X[:-1], X[1:], line_fp[1:]):
+            k = max(1, int(np.ceil(np.linalg.norm(a - b) / row_step)))
+            anchors += [a + (b - a) * (j / k) for j in range(1, k + 1)]
+            is_fp += [False] * (k - 1) + [bool(fb)]
+        anchors = _descending(np.array(anchors), np.array(is_fp), side, front)
+        last = anchors[-1]
+        below = [last - np.array([0.0, h, 0.0]) for h in _BELOW]
+        mesh = None
+        if skin is not None:
+            heights = np.array([a[1] for a in anchors] + [b[1] for b in below])
+            mesh = dict(zip(heights.tolist(), sections(np.asarray(skin[0], float), np.asarray(skin[1]), heights)))
+        rows = [self._straight_row(X[0], lift) for lift in reversed(_ABOVE)]
+        for x in anchors:
+            rows.append(self._outline_row(mesh, x) if mesh is not None else None)
+            if rows[-1] is None:
+                rows[-1] = self._straight_row(x, 0.0)
+        for h, b in zip(_BELOW, below):
+            row = self._outline_row(mesh, b, midline=True) if mesh is not None and h < 0.5 else None
+            rows.append(row if row is not None else self._straight_row(last, -h))
+        src = np.array([r[0] for r in rows])  # (R, C, 2)
+        dst = np.array([r[1] for r in rows])
+        for k, name, pts in ((0, "side", src), (1, "front", dst)):
+            v = pts[:, 0, 1]
+            if (np.diff(v) <= 0).any():
+                raise InputError(f"the feature line does not run downwards in the {name} photo", where=where,
+                                 fix=f"check the heights of {', '.join(FEATURE_LINE)} in the {name} photo")
+        n_rows, n_cols = src.shape[:2]
+        self._shape = (n_rows, n_cols)
+        self.source = src.reshape(-1, 2)
+        self.target = dst.reshape(-1, 2)
+        k = np.arange(n_rows * n_cols).reshape(n_rows, n_cols)
+        a, b, c, d = k[:-1, :-1], k[:-1, 1:], k[1:, :-1], k[1:, 1:]
+        self.simplices = np.r_[np.c_[a.ravel(), b.ravel(), c.ravel()], np.c_[b.ravel(), d.ravel(), c.ravel()]]
+        a_s = _signed_areas(self.source, self.simplices)
+        a_t = _signed_areas(self.target, self.simplices)
+        self.folded = int(np.sum(np.sign(a_s) != np.sign(a_t)))
+        if self.folded:
+            raise InputError(f"the side photo's feature line folds over itself when laid on the front photo's "
+                             f"({self.folded} triangles flip)", where=where,
+                             fix="check the positions of " + ", ".join(FEATURE_LINE) + " in both photos")
+
+    # Rows: (C, 2) side pixels and (C, 2) composite pixels, at _ARC offsets then the far ones.
+    def _directions(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Side-photo pixels per metre towards the back of the head, and front-photo pixels
+        per metre outwards, at a point."""
+        d = 0.01
+        s0, f0 = self._side.project(x[None])[0], self._front.project(x[None])[0]
+        ds = (self._side.project((x + [0.0, 0.0, -d])[None])[0] - s0) / d
+        df = (self._front.project((x + [self._sigma * d, 0.0, 0.0])[None])[0] - f0) / d
+        return ds, df
+
+    def _straight_row(self, x: np.ndarray, lift: float):
+        d = 0.01
+        s0, f0 = self._side.project(x[None])[0], self._front.project(x[None])[0]
+        up = np.array([0.0, d, 0.0])
+        s0 = s0 + (self._side.project((x + up)[None])[0] - s0) * (lift / d)
+        f0 = f0 + (self._front.project((x + up)[None])[0] - f0) * (lift / d)
+        ds, df = self._directions(x)
+        t = np.r_[-_FAR, _ARC, _FAR]
+        # Rows are horizontal in both photos (so that they cannot cross).
+        return (np.c_[s0[0] + ds[0] * t, np.full(len(t), s0[1])],
+                np.c_[f0[0] + df[0] * t, np.full(len(t), f0[1])])
+
+    def _outline_row(self, sections, x: np.ndarray, midline: bool = False):
+        """The row along the head's outline at the height of ``x`` (None when the section
+        is too small to follow)."""
+        from scipy.spatial import ConvexHull
+
+        xz = sections.get(float(x[1]))
+        if xz is None or len(xz) < 8:
+            return None
+        try:
+            hull = xz[ConvexHull(xz).vertices]
+        except Exception:  # a flat section: nothing to follow
+            return None
+        ring = np.vstack([hull, hull[:1]])
+        seglen = np.linalg.norm(np.diff(ring, axis=0), axis=1)
+        if seglen.sum() < 0.05:
+            return None
+        cum = np.r_[0.0, np.cumsum(seglen)]
+        perimeter = cum[-1]
+        zc = 0.5 * (hull[:, 1].min() + hull[:, 1].max())
+        sig = self._sigma
+
+        def at(s):
+            s = np.mod(s, perimeter)
+            return np.c_[np.interp(s, cum, ring[:, 0]), np.interp(s, cum, ring[:, 1])]
+
+        # Arc position of the anchor (the nearest place on the outline).
+        if midline:
+            s_a = self._crossing(at, cum, perimeter, ring, front=True)
+            if s_a is None:
+                return None
+        else:
+            q = np.asarray(x)[[0, 2]]
+            p0, p1 = ring[:-1], ring[1:]
+            dvec = p1 - p0
+            t = np.clip(((q - p0) * dvec).sum(axis=1) / np.maximum((dvec ** 2).sum(axis=1), 1e-18), 0, 1)
+            dist = np.linalg.norm(p0 + t[:, None] * dvec - q, axis=1)
+            j = int(np.argmin(dist))
+            s_a = cum[j] + t[j] * seglen[j]
+        theta = lambda p: np.arctan2(sig * p[:, 0], p[:, 1] - zc)  # noqa: E731
+        step = 1e-3
+        direction = 1.0 if theta(at(s_a + step))[0] > theta(at(s_a - step))[0] else -1.0
+        # How far the outline runs back to the back midline and forward to the front midline.
+        fine = np.arange(0.0, perimeter, 1e-3)
+        back_pts = at(s_a + direction * fine)
+        fwd_pts = at(s_a - direction * fine)
+        L_back = _first_crossing(fine, sig * back_pts[:, 0], back_pts[:, 1] < zc)
+        L_front = _first_crossing(fine, sig * fwd_pts[:, 0], fwd_pts[:, 1] > zc)
+        if midline:
+            L_front = 0.0
+        # The front view's silhouette: the outline's widest point between the midlines.
+        span = np.r_[-fine[fine <= L_front][::-1], fine[fine <= L_back]]
+        widest = span[int(np.argmax(sig * at(s_a + direction * span)[:, 0]))]
+        s_sil = max(widest, 0.0)
+        y = float(x[1])
+
+        def point(t):
+            return np.array([*at(s_a + direction * t)[0][:1], y, at(s_a + direction * t)[0][1]])
+
+        anchor3 = point(0.0) if midline else np.asarray(x, float)
+        s_anchor = self._side.project(anchor3[None])[0]
+        f_anchor = self._front.project(anchor3[None])[0]
+        ds, df = self._directions(anchor3)
+        side_u, comp_x = [], []
+        for t in _ARC:
+            tt = min(max(t, -L_front), L_back)
+            p = point(tt)
+            u = self._side.project(p[None])[0][0] + ds[0] * (t - tt)
+            if tt <= s_sil:
+                c = self._front.project(p[None])[0][0]
+                c += df[0] * (t - tt)  # beyond the front midline: straight on
+            else:
+                c = self._front.project(point(s_sil)[None])[0][0] + df[0] * (t - s_sil)
+            side_u.append(u)
+            comp_x.append(c)
+        side_u = _monotone(np.array(side_u), np.sign(ds[0]) or 1.0)
+        comp_x = _monotone(np.array(comp_x), np.sign(df[0]) or 1.0)
+        # The far points continue the row's ends straight on.
+        su = np.r_[side_u[0] + ds[0] * (-_FAR - _ARC[0]), side_u, side_u[-1] + ds[0] * (_FAR - _ARC[-1])]
+        cx = np.r_[comp_x[0] + df[0] * (-_FAR - _ARC[0]), comp_x, comp_x[-1] + df[0] * (_FAR - _ARC[-1])]
+        if not midline:
+            # Exact at the anchor (a feature-line point): its own pixels in both photos.
+            k0 = 1 + int(np.flatnonzero(np.asarray(_ARC) == 0.0)[0])
+            su[k0], cx[k0] = s_anchor[0], f_anchor[0]
+            su = _monotone(su, np.sign(ds[0]) or 1.0)
+            cx = _monotone(cx, np.sign(df[0]) or 1.0)
+        return np.c_[su, np.full(len(su), s_anchor[1])], np.c_[cx, np.full(len(cx), f_anchor[1])]
+
+    @staticmethod
+    def _crossing(at, cum, perimeter, ring, front: bool):
+        """Arc position where the outline crosses the midline x = 0 at its front (or back)."""
+        fine = np.arange(0.0, perimeter, 2.5e-4)
+        p = at(fine)
+        sgn = np.sign(p[:, 0])
+        idx = np.flatnonzero(sgn[:-1] * sgn[1:] <= 0)
+        if not len(idx):
+            return None
+        zs = p[idx, 1]
+        j = idx[int(np.argmax(zs))] if front else idx[int(np.argmin(zs))]
+        return float(fine[j])
+
+    def forward(self, side_px: np.ndarray) -> np.ndarray:
+        """(K, 2) composite-frame pixels of (K, 2) side-photo pixels."""
+        p = np.asarray(side_px, dtype=np.float64).reshape(-1, 2)
+        grid = self.source.reshape(self._shape + (2,))
+        v_rows = grid[:, 0, 1]  # every row is horizontal in the side photo
+        r = np.clip(np.searchsorted(v_rows, p[:, 1]) - 1, 0, len(v_rows) - 2)
+        a = (p[:, 1] - v_rows[r]) / (v_rows[r + 1] - v_rows[r])
+        # Where the quads' sides cross the point's height, left to right.
+        sides = grid[r, :, 0] * (1 - a[:, None]) + grid[r + 1, :, 0] * a[:, None]  # (K, C)
+        increasing = sides[:, -1] >= sides[:, 0]
+        key = np.where(increasing[:, None], sides, -sides)
+        c = np.clip((key < np.where(increasing, p[:, 0], -p[:, 0])[:, None]).sum(axis=1) - 1, 0, self._shape[1] - 2)
+        n_quads = (self._shape[0] - 1) * (self._shape[1] - 1)
+        quad = r * (self._shape[1] - 1) + c
+        out = np.empty_like(p)
+        for half in (0, 1):  # the quad's two triangles: try the first, else the second
+            tri = self.simplices[quad + half * n_quads]
+            corners = self.source[tri]
+            bary = _bary(p, corners)
+            ok = bary.min(axis=1) >= -1e-9
+            if half == 0:
+                first_ok = ok
+                out[ok] = np.einsum("kc,kcd->kd", bary[ok], self.target[tri[ok]])
+            else:
+                rest = ~first_ok
+                out[rest] = np.einsum("kc,kcd->kd", bary[rest], self.target[tri[rest]])
+        return out
+
+    def inverse_map(self, grid_to_composite: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+        """(H, W, 2) float32 side-photo pixels for a grid of composite-frame points.
+
+        Parameters
+        ----------
+        grid_to_composite : (3, 3) float
+            Affine map (homogeneous) from the grid's pixel (x, y) to composite pixels.
+        size : (height, width)
+            The grid. Points outside the warp get (-1, -1).
+        """
+        inv = np.linalg.inv(np.asarray(grid_to_composite, dtype=np.float64))
+        corners = (np.c_[self.target, np.ones(len(self.target))] @ inv.T)[:, :2]
+        ids, bary = rasterize(corners, self.simplices, size)
+        src = self.source[self.simplices]  # (T, 3, 2)
+        out = np.full(tuple(size) + (2,), -1.0, dtype=np.float32)
+        ys, xs = np.nonzero(ids >= 0)
+        out[ys, xs] = np.einsum("kc,kcd->kd", bary[ys, xs], src[ids[ys, xs]])
+        return out
+
+
+def _descending(anchors: np.ndarray, is_fp: np.ndarray, side: FittedCamera, front: FittedCamera,
+                min_gap_px: float = 2.0) -> list[np.ndarray]:
+    """The anchors whose rows run strictly downwards in both photos, top to bottom.
+
+    A person's feature line need not descend everywhere (the outer brow may sit lower than
+    where the ear joins the head); rows must, so anchors are taken by height and one that
+    would not sit at least ``min_gap_px`` below the previous row in both photos is left
+    out — a point between feature points first, a feature point only when two of them
+    share a height.
+    """
+    order = np.argsort(-anchors[:, 1], kind="stable")
+    a, fp = anchors[order], is_fp[order]
+    vs, vf = side.project(a)[:, 1], front.project(a)[:, 1]
+    keep = []
+    for k in range(len(a)):
+        if keep:
+            j = keep[-1]
+            if vs[k] - vs[j] < min_gap_px or vf[k] - vf[j] < min_gap_px:
+                if fp[k] and not fp[j]:
+                    keep[-1] = k  # a feature point displaces the point between them
+                continue
+        keep.append(k)
+    return [a[k] for k in keep]
+
+
+def sections(vertices: np.ndarray, triangles: np.ndarray, heights: np.ndarray) -> list[np.ndarray]:
+    """For each height, the (K, 2) (x, z) points where the mesh's edges cross the plane
+    y = height (the cross-section's outline, unordered)."""
+    tri = np.asarray(triangles)
+    # Every triangle's three edges; an edge shared by two triangles gives its crossing twice,
+    # which neither a hull nor a widest point minds (and saves sorting the edges).
+    edges = np.r_[tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]
+    a, b = vertices[edges[:, 0]], vertices[edges[:, 1]]
+    lo, hi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
+    out = []
+    for y in np.asarray(heights, float):
+        m = (lo < y) & (hi >= y)
+        t = (y - a[m, 1]) / (b[m, 1] - a[m, 1])
+        p = a[m] + t[:, None] * (b[m] - a[m])
+        out.append(p[:, [0, 2]])
+    return out
+
+
+def _first_crossing(s: np.ndarray, signed_x: np.ndarray, right_end: np.ndarray) -> float:
+    """First arc length at which a walk along the outline reaches the midline (signed x
+    turns negative) on the expected end (back or front); the walk's end otherwise."""
+    hit = np.flatnonzero((signed_x <= 0) & right_end)
+    return float(s[hit[0]]) if len(hit) else float(s[-1])
+
+
+def _monotone(values: np.ndarray, sign: float) -> np.ndarray:
+    """The values made non-decreasing along ``sign`` (a running maximum), then nudged to
+    be strictly so, keeping every row's points in order."""
+    v = np.maximum.accumulate(np.asarray(values, float) * sign)
+    v = v + np.arange(len(v)) * 1e-6
+    return v * sign
+
+
+def _bary(p: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """(K, 3) barycentric coordinates of points (K, 2) in triangles (K, 3, 2) (unclamped)."""
+    v0, v1 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
+    d = p - c[:, 0]
+    den = v0[:, 0] * v1[:, 1] - v0[:, 1] * v1[:, 0]
+    b1 = (d[:, 0] * v1[:, 1] - d[:, 1] * v1[:, 0]) / den
+    b2 = (v0[:, 0] * d[:, 1] - v0[:, 1] * d[:, 0]) / den
+    return np.c_[1.0 - b1 - b2, b1, b2]
+
+
+def _signed_areas(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    a, b, c = p[tri[:, 0]], p[tri[:, 1]], p[tri[:, 2]]
+    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
