@@ -433,7 +433,11 @@ def _build_here(row: ManifestRow, out_dir: str, defaults: dict, created: str | N
             raise
         tmp = None
     except InputError as e:
-        record.update(error=str(e), error_kind="input")
+        text = str(e)
+        if tmp is not None and row.fdp is None and row.shape_from is None:  # name what was detected, not a temp file
+            text = text.replace(os.fspath(tmp / "annotations.fdp.json"),
+                                f"the points detected automatically on {row.front} and {row.side}")
+        record.update(error=text, error_kind="input")
     except Exception as e:  # one row's bug must not cost the others; keep it visible in the report
         record.update(error=f"{type(e).__name__}: {e}", error_kind="internal", traceback=traceback.format_exc())
     finally:
