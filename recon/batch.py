@@ -662,8 +662,9 @@ def _run_local(todo: list[ManifestRow], workers: int, submit_args: tuple, out: P
                 pending.pop(row.id)
                 on_result(record)
         except BaseException:
+            processes = list((getattr(pool, "_processes", None) or {}).values())  # no public way before 3.14
             pool.shutdown(wait=False, cancel_futures=True)
-            for process in list(getattr(pool, "_processes", {}).values()):  # no public way before 3.14
+            for process in processes:
                 process.terminate()
             raise
         pool.shutdown()
