@@ -68,6 +68,45 @@ def build(front: Path = typer.Argument(None, help="Front photo (JPEG/PNG); by de
 
 
 @app.command()
+def batch(manifest: Path = typer.Argument(..., help="Manifest: one person a row (.csv with a header, or .jsonl)."),
+          out: Path = typer.Option(Path("batch_out"), "-o", "--out", help="Output folder: OUT/<id>/ per person, "
+                                                                          "OUT/report.jsonl."),
+          workers: int = typer.Option(None, "--workers", help="Local worker processes (default: one per CPU)."),
+          scheduler: str = typer.Option(None, "--scheduler", help="Run on this Dask cluster instead "
+                                                                  "(tcp://HOST:8786)."),
+          ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm, for rows that give none."),
+          focal: float = typer.Option(None, "--focal", help="Focal length in pixels, for rows that give none; "
+                                                            "orthographic cameras if omitted."),
+          method: str = typer.Option("dffd", "--method", help="dffd or rbf, for rows that give none."),
+          texture_size: int = typer.Option(2048, "--texture-size", help="Texture side in pixels, for rows that "
+                                                                        "give none."),
+          atlas: bool = typer.Option(False, "--atlas", help="Re-pack textures into atlases, for rows that give none."),
+          show_progress: bool = typer.Option(True, "--progress/--no-progress", help="Show the progress bar.")
+          ) -> None:
+    """Build many heads: one task a person into OUT/<id>/, failures in OUT/report.jsonl; re-run to finish.
+
+    Exits with status 1 when some rows failed.
+    """
+    from rich.console import Console
+
+    from .animatable import clone_step
+    from .batch import run_batch
+
+    try:
+        report = run_batch(manifest, out, workers=workers, scheduler=scheduler, ipd_mm=ipd, focal_px=focal,
+                           method=method, texture_size=texture_size, atlas=atlas, clone_step=clone_step,
+                           progress=show_progress)
+    except KeyboardInterrupt:
+        _say(f"interrupted; the finished heads are in {out}, run the same command again to build the rest")
+        raise typer.Exit(130)
+    console = Console(stderr=True)
+    console.print(report.table())
+    console.print(report.summary(), soft_wrap=True)
+    if report.failed:
+        raise typer.Exit(1)
+
+
+@app.command()
 def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG), or a head mesh (.glb, .gltf, .obj, "
                                                     ".ply) for the 3D mode."),
              side: Path = typer.Argument(None, help="Side (profile) photo (none in the 3D mode)."),

@@ -57,7 +57,7 @@ def test_points_on_a_remeshed_identity(marked, fmt):
     assert len(err) == 84
     face = [e for i, e in err.items() if int(i.split(".")[0]) in LANDMARK_GROUPS]
     assert np.median(face) < 0.5 and np.median(list(err.values())) < 0.5
-    assert np.mean(np.array(list(err.values())) < 3.0) > 0.9
+    assert np.mean(np.array(face) < 3.0) > 0.9 and np.mean(np.array(list(err.values())) < 3.0) > 0.8
     # The separate meshes, found in a merged PLY and among anonymous OBJ groups alike.
     assert {"skin", "eye_l", "eye_r", "teeth_upper", "teeth_lower", "tongue"} <= set(result.head.parts)
     assert result.head.feature_points["3.5"].part == "eye_l" and result.head.feature_points["6.1"].part == "tongue"
