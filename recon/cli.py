@@ -136,26 +136,6 @@ def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG), or 
 
 
 @app.command()
-def mark3d(mesh: Path = typer.Argument(..., help="Head mesh (.glb, .gltf, .obj or .ply), in any unit and axes."),
-           out: Path = typer.Option(None, "-o", "--out", help="Feature point file to write "
-                                                              "[default: MESH.fdp.json beside the mesh]."),
-           unit: str = typer.Option(None, help="The mesh's unit: m, cm, mm or in [default: from its size]."),
-           up: str = typer.Option(None, help="The mesh's up axis: +x, -x, +y, -y, +z or -z [default: detected]."),
-           forward: str = typer.Option(None, help="The axis the face looks along [default: detected]."),
-           passes: int = typer.Option(2, help="1: points from the first renders; 2: again in the frame they give.")
-           ) -> None:
-    """Find the MPEG-4 feature points of a head mesh (renders, 2D landmarks, ray casting): MESH.fdp.json."""
-    from .mark3d import mark_file
-
-    path, result = mark_file(mesh, out, unit=unit, up=up, forward=forward, passes=passes, progress=_say)
-    for note in result.notes:
-        _say(note)
-    for w in result.warnings:
-        _say(f"warning: {w}")
-    typer.echo(path)
-
-
-@app.command()
 def preview(head: Path = typer.Argument(..., help="Head file (.glb, .gltf or .obj with its .fdp.json)."),
             out: Path = typer.Option(Path("preview.png"), "-o", "--out", help="PNG to write."),
             size: int = typer.Option(720, help="Height of each view in pixels."),

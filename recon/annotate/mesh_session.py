@@ -15,7 +15,6 @@ installed; else the generic head's points, scaled to the mesh and snapped to its
 
 from __future__ import annotations
 
-import hashlib
 import os
 import tempfile
 import threading
@@ -30,7 +29,7 @@ from mpeg4.io.atomic import atomic_write
 from mpeg4.io.fdp_json import FdpFile, place_mesh, read_fdp_json, write_fdp_json
 
 from .placement import GUESS_CONFIDENCE
-from .session import LOW_CONFIDENCE, SaveConflict
+from .session import LOW_CONFIDENCE, SaveConflict, _colour, _hash
 
 __all__ = ["MESH_EXTENSIONS", "SNAP_MM", "INSIDE", "MeshSession", "is_mesh"]
 
@@ -46,17 +45,6 @@ VIEW = "mesh"
 def is_mesh(path) -> bool:
     """Whether ``recon annotate`` opens this file in the 3D mode."""
     return Path(path).suffix.lower() in MESH_EXTENSIONS
-
-
-def _hash(path: Path) -> str | None:
-    try:
-        return hashlib.sha256(path.read_bytes()).hexdigest()
-    except FileNotFoundError:
-        return None
-
-
-def _colour(rgb) -> str:
-    return "#" + "".join(f"{c:02x}" for c in rgb)
 
 
 class MeshSession:
