@@ -75,6 +75,11 @@ _NOSE_CAP = 0.015  # metres: depth of the cap in which the nose ends
 _SLICE = 0.105  # metres beyond the nose: the forehead and skull above, under the chin below
 _CLOSE_CALL = 0.03  # metres: up scores nearer than this leave it to the feature points
 _NOT_A_NOSE = 0.8  # a narrowest end at least this share of the next one is no nose
+# Points a photo shows by colour or the face's oval, not by the shape a render shows.
+_TEXTURE_POINTS = ("2.10", "2.11", "2.12", "2.13", "2.14", "11.1", "11.2", "11.3", "11.5")
+# How far the generic head's shape may overrule recon.landmarks' points on a render
+# (template_fit.fit_generic's give); measured on held-out identities.
+_LANDMARK_GIVE = 1e-3
 _SKIN, _WHITE, _PINK = (0.86, 0.68, 0.56), (0.92, 0.92, 0.9), (0.75, 0.4, 0.42)
 
 
@@ -558,7 +563,24 @@ def landmark_detector() -> Callable[[Views], FdpFile]:
         return detect(os.fspath(views.paths["front"]), os.fspath(views.paths["side"]))
 
     run.__name__ = "recon.landmarks.detect"
+    run.guessed = untextured_guesses
+    run.give = _LANDMARK_GIVE
     return run
+
+
+def untextured_guesses(found: FdpFile) -> set[str]:
+    """The points a photo detector can only guess on the render of an untextured mesh.
+
+    Those a photo shows by colour, which a grey render does not have: the eyebrows (4.x),
+    the hairline and the hair (11.1-11.3, 11.5); those the face mesh guesses from the
+    face's oval, not from anything it sees (the chin boss and corners, the jaw angles
+    2.10-2.14, the cheeks 5.x); and whatever :func:`recon.landmarks.detect` found in the
+    front view by the silhouette or by rule rather than by its face mesh (the ears, the top
+    of the skull). :func:`fitted_points` places them from the shape instead.
+    """
+    source = (found.metadata.get("landmarks") or {}).get("source", {}).get("front", {})
+    out = {i for i in FP_IDS if FEATURE_POINTS[i].group in (4, 5) or i in _TEXTURE_POINTS}
+    return out | {i for i, s in source.items() if s != "model"}
 
 
 # --- lifting -------------------------------------------------------------------------------
@@ -956,6 +978,75 @@ def find_parts(head: Head, hits: Mapping[str, Hit]) -> tuple[dict[str, PartSourc
     return out, notes
 
 
+# --- points from the shape ----------------------------------------------------------------
+
+def fitted_points(head: Head, hits: dict[str, Hit], guessed=(), give: float = 0.0,
+                  surface: _Surface | None = None, generic: Head | None = None) -> dict[str, Hit]:
+    """Points from the generic head fitted to the surface (:func:`recon.template_fit.fit_generic`).
+
+    The found skin points (all but ``guessed``) are the fit's anchors. Then:
+
+    - a guessed point, one the detector missed, or an anchor the fit leaves out as an
+      outlier: the fitted generic head's point, snapped to the skin (``how`` ``"shape"``;
+      confidence 0.5 on the face, 0.3 for the ears, skull and hairline);
+    - an anchor, when ``give`` > 0: the fitted point snapped to the skin, which smooths the
+      detector's noise by the generic head's shape (``"fitted"``; the detector's
+      confidence, lowered by how far the fit moved it);
+    - 7.1 (inside the neck): the generic head's, carried by the fit, bound inside (0.3).
+
+    Points not on the skin (pupils, teeth, tongue) are left as they are.
+
+    Parameters
+    ----------
+    head : Head
+        In the neutral frame, parts named (a ``skin`` part; else ``hits`` are returned).
+    hits : dict of str to Hit
+        From :func:`lift`.
+    guessed : collection of str
+        Points the detector could only guess (:func:`untextured_guesses`).
+    give : float
+        How far the shape may overrule the anchors (see ``fit_generic``); 0 keeps them.
+
+    Returns
+    -------
+    dict of str to Hit
+        In catalogue order.
+    """
+    from .template_fit import fit_generic
+
+    if "skin" not in head.parts:
+        return hits
+    if generic is None:
+        from mpeg4.generic_head import load_generic_head
+
+        generic = load_generic_head()
+    surface = surface or _Surface(head)
+    gb = generic.feature_points
+    anchors = {i: h for i, h in hits.items() if i not in guessed and h.confidence > 0 and i in gb
+               and gb[i].part == "skin" and h.part == "skin"}
+    skin = head.parts["skin"]
+    try:
+        fit = fit_generic(skin.vertices, skin.triangles, {i: h.point for i, h in anchors.items()},
+                          {i: h.confidence for i, h in anchors.items()}, generic, give=give)
+    except InputError:
+        return hits
+    out = dict(hits)
+    ids = [i for i in fit.points if i in FEATURE_POINTS and i != "7.1"
+           and (i not in anchors or give > 0 or i not in fit.anchors)]
+    if ids:
+        tri, snapped = surface.closest(np.array([fit.points[i] for i in ids]), ["skin"])
+        for i, t, p in zip(ids, tri, snapped):
+            if i in anchors and i in fit.anchors:
+                moved = float(np.linalg.norm(p - anchors[i].point))
+                out[i] = surface.hit(t, p, anchors[i].confidence * np.exp(-(moved / 0.004) ** 2), "fitted")
+            else:
+                far = FEATURE_POINTS[i].group in (7, 10, 11)
+                out[i] = surface.hit(t, p, 0.3 if far else 0.5, "shape")
+    if "7.1" in gb:
+        out["7.1"] = Hit(fit.move(generic.fp_position("7.1"))[0], "skin", -1, np.zeros(3), 0.3, "shape")
+    return {i: out[i] for i in FP_IDS if i in out}
+
+
 # --- points no view shows ------------------------------------------------------------------
 
 def _generic_map(hits: Mapping[str, Hit], generic: Head):
@@ -1198,6 +1289,10 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
         found = _detect(detect, views, name, where)
     surface = _Surface(head)
     hits = lift(head, views, found, surface)
+    say("fitting the generic head to the surface")
+    guessed = getattr(detect, "guessed", None)
+    hits = fitted_points(head, hits, set() if guessed is None else guessed(found), getattr(detect, "give", 0.0),
+                         surface)
     hits = hidden_points(head, hits, surface=surface)
     bindings = {}
     for i, h in hits.items():
