@@ -27,9 +27,16 @@ comes in its own units and axes. :func:`mark` gives it both:
 6. :func:`refine_frame` turns the frame so the points sit as the generic head's do (a
    Umeyama rotation), and the head is rendered and lifted once more in that frame.
 7. :func:`find_parts` finds the eyes (the pieces the pupils' rays hit), teeth and tongue
-   (the pieces inside the mouth) by the points and the mesh's connectivity;
-   :func:`hidden_points` places the points no view shows (teeth, tongue, 7.1) from the
-   generic head.
+   (the pieces inside the mouth) by the points and the mesh's connectivity.
+8. :func:`fitted_points` fits the generic head's skin to the surface, following the
+   points found on it (:func:`recon.template_fit.fit_generic`: a similarity, then a
+   thin-plate-spline field refined by non-rigid closest-point matching). A grey render
+   shows no eyebrows, hairline or ear detail, so the points a detector can only guess
+   there (:func:`untextured_guesses`) are the fitted generic head's, with lower
+   confidences; the found points are smoothed by the fit as far as the detector says its
+   noise needs (its ``give``).
+9. :func:`hidden_points` places the points no view shows and no fit reached (teeth,
+   tongue; 7.1 on a mesh without a skin) from the generic head.
 
 The result is an ``fdp.json`` that binds every point to the file's own vertices and says
 how to bring the mesh to the neutral frame and name its parts
@@ -60,8 +67,8 @@ from mpeg4.head import FeaturePointBinding, Head
 from mpeg4.io.fdp_json import FdpFile, PartSource, place_mesh
 
 __all__ = ["UNITS", "AXES", "Frame", "check_mesh", "estimate_frame", "refine_frame", "Views", "render_views",
-           "landmark_detector", "Hit", "lift", "find_parts", "hidden_points", "Marking", "mark", "mark_file",
-           "load_mesh", "default_fdp_path", "MIN_POINTS"]
+           "landmark_detector", "untextured_guesses", "Hit", "lift", "find_parts", "fitted_points", "hidden_points",
+           "Marking", "mark", "mark_file", "load_mesh", "default_fdp_path", "MIN_POINTS"]
 
 #: Units a mesh may be in (metres per unit). Detection chooses among m, cm and mm.
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
@@ -78,7 +85,8 @@ _NOT_A_NOSE = 0.8  # a narrowest end at least this share of the next one is no n
 # Points a photo shows by colour or the face's oval, not by the shape a render shows.
 _TEXTURE_POINTS = ("2.10", "2.11", "2.12", "2.13", "2.14", "11.1", "11.2", "11.3", "11.5")
 # How far the generic head's shape may overrule recon.landmarks' points on a render
-# (template_fit.fit_generic's give); measured on held-out identities.
+# (template_fit.fit_generic's give): best of 1e-4, 1e-3, 1e-2 on ICT identities 20-27,
+# which the benchmark (0-19) does not use.
 _LANDMARK_GIVE = 1e-3
 _SKIN, _WHITE, _PINK = (0.86, 0.68, 0.56), (0.92, 0.92, 0.9), (0.75, 0.4, 0.42)
 
@@ -540,6 +548,10 @@ def render_views(head: Head, folder, size: int = 1024, frame: np.ndarray | None 
 
 def landmark_detector() -> Callable[[Views], FdpFile]:
     """The photo annotation's detector (:func:`recon.landmarks.detect`) applied to the renders.
+
+    The detector carries ``guessed`` (:func:`untextured_guesses`) and ``give`` (how far
+    the generic head fitted to the surface may smooth its points; measured on ICT
+    identities that ``benchmarks/mark3d_accuracy.py`` does not use) for :func:`mark`.
 
     Raises
     ------
@@ -1038,7 +1050,7 @@ def fitted_points(head: Head, hits: dict[str, Hit], guessed=(), give: float = 0.
         for i, t, p in zip(ids, tri, snapped):
             if i in anchors and i in fit.anchors:
                 moved = float(np.linalg.norm(p - anchors[i].point))
-                out[i] = surface.hit(t, p, anchors[i].confidence * np.exp(-(moved / 0.004) ** 2), "fitted")
+                out[i] = surface.hit(t, p, anchors[i].confidence * np.exp(-(moved / 0.006) ** 2), "fitted")
             else:
                 far = FEATURE_POINTS[i].group in (7, 10, 11)
                 out[i] = surface.hit(t, p, 0.3 if far else 0.5, "shape")
@@ -1204,7 +1216,10 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
         mesh as read.
     detect : callable, optional
         ``detect(views) -> FdpFile`` with ``front`` and ``side`` pixels and confidences;
-        :func:`landmark_detector` (the photo annotation's) when None.
+        :func:`landmark_detector` (the photo annotation's) when None. Optional attributes:
+        ``detect.guessed(found) -> set`` of the points it can only guess on a grey render
+        (placed from the shape instead), ``detect.give`` how far the generic head's shape
+        may smooth its points (:func:`fitted_points`; 0, the points kept, when absent).
     unit, up, forward : str, optional
         See :func:`estimate_frame`.
     size : int
