@@ -35,9 +35,11 @@ from .deform import fit_similarity
 __all__ = ["GenericFit", "fit_generic"]
 
 _SAMPLES = 1200  # generic skin vertices matched to the surface each round
-_ROUNDS = 4
-_REACH = (0.012, 0.008, 0.006, 0.005)  # metres: farthest surface match accepted, per round
-_STIFF = (3e-4, 1e-4, 4e-5, 2e-5)  # TPS smoothing of the surface matches, per round (m²)
+# Coarse to fine: far matches and a stiff field first (the skull may be centimetres off
+# after the similarity), near matches and a supple field last.
+_REACH = (0.04, 0.03, 0.02, 0.012, 0.008, 0.006, 0.005, 0.004)  # metres: farthest match accepted
+_STIFF = (3e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 4e-5, 2e-5)  # TPS smoothing of the matches
+_ROUNDS = len(_REACH)
 
 
 @dataclass
