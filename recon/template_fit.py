@@ -34,12 +34,13 @@ from .deform import fit_similarity
 
 __all__ = ["GenericFit", "fit_generic"]
 
-_SAMPLES = 1200  # generic skin vertices matched to the surface each round
+_SAMPLES = 800  # generic skin vertices matched to the surface each round
 # Coarse to fine: far matches and a stiff field first (the skull may be centimetres off
 # after the similarity), near matches and a supple field last.
 _REACH = (0.04, 0.03, 0.02, 0.012, 0.008, 0.006, 0.005, 0.004)  # metres: farthest match accepted
 _STIFF = (3e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 4e-5, 2e-5)  # TPS smoothing of the matches
 _ROUNDS = len(_REACH)
+_STEP = 0.002  # metres along the surface for the normals of the matched vertices
 
 
 @dataclass
@@ -152,13 +153,22 @@ def fit_generic(vertices, triangles, found: Mapping[str, np.ndarray], weights: M
     tn = _vertex_normals(tv, tt)
     tree = cKDTree(tv)
     sample = _spread(rest, _SAMPLES)
+    # Each round moves only the matched vertices and two points beside each along the
+    # surface (their normals by finite differences): the whole skin moves once, at the end.
+    n0 = _vertex_normals(rest, skin.triangles)[sample]
+    t1 = np.cross(n0, np.where(np.abs(n0[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(n0, t1)
+    probe = np.concatenate([rest[sample], rest[sample] + _STEP * t1, rest[sample] + _STEP * t2, src])
+    moved = sim(probe)
+    m = len(sample)
     anchor_d = dst - sim(src)
-    current = base
     gap = np.inf
     field = None
     for k in range(_ROUNDS):
-        cur_n = _vertex_normals(current, skin.triangles)[sample]
-        q = current[sample]
+        q, a, c = moved[:m], moved[m:2 * m], moved[2 * m:3 * m]
+        cur_n = np.cross(a - q, c - q)
+        cur_n /= np.maximum(np.linalg.norm(cur_n, axis=1, keepdims=True), 1e-20)
         dist, j = tree.query(q)
         n = tn[j]
         # The tangent plane at the nearest vertex: the match may slide along the surface.
@@ -168,13 +178,13 @@ def fit_generic(vertices, triangles, found: Mapping[str, np.ndarray], weights: M
             break
         gap = float(np.median(np.linalg.norm(target[ok] - q[ok], axis=1)))
         ctrl = np.r_[src[keep], rest[sample[ok]]]
-        disp = np.r_[anchor_d[keep], target[ok] - base[sample[ok]]]
+        disp = np.r_[anchor_d[keep], target[ok] - sim(rest[sample[ok]])]
         smooth = np.r_[max(give, 1e-6) / w[keep], np.full(ok.sum(), _STIFF[k])]
         field = RBFInterpolator(ctrl, disp, kernel="thin_plate_spline", smoothing=smooth)
-        current = base + field(rest)
-        fitted = np.array([at(current, i) for i in ids])
-        off = np.linalg.norm(fitted - dst, axis=1)
+        moved = sim(probe) + field(probe)
+        off = np.linalg.norm(moved[3 * m:] - dst, axis=1)
         keep = off < max(outlier, 3 * np.median(off))
+    current = base if field is None else base + field(rest)
     points = {i: at(current, i) for i in b if b[i].part == "skin"}
 
     def move(p):
