@@ -614,7 +614,9 @@ class Hit:
         In [0, 1].
     how : str
         Which rule placed it (``front ray``, ``profile``, ``side ray``, ``mirrored``,
-        ``teeth``, ``tongue``, ``generic``).
+        ``eye front``; after :func:`fitted_points` ``fitted`` for a found point smoothed by
+        the fitted generic head and ``shape`` for the fitted generic head's own; ``teeth``,
+        ``tongue``, ``generic``).
     """
 
     point: np.ndarray
