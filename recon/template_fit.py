@@ -5,9 +5,9 @@ shape still says where they are, relative to the points a detector does find (ey
 mouth). :func:`fit_generic` moves the generic head's skin onto a head mesh: first the
 similarity [1]_ that takes the generic head's feature points to the found ones, then a
 smooth thin-plate-spline displacement field [2]_ that puts them on the found points and the
-skin on the surface, refined by a few rounds of non-rigid closest-point matching [3]_
-(each generic vertex pulled to the tangent plane at the nearest surface vertex facing the
-same way). The generic head's feature points, carried by the fit, are then where the
+skin on the surface, refined by rounds of non-rigid closest-point matching [3]_ from coarse
+to fine (800 generic vertices spread over the skin, each pulled to the tangent plane at the
+nearest surface vertex facing the same way; far matches and a stiff field first). The generic head's feature points, carried by the fit, are then where the
 mesh's are.
 
 References
@@ -22,7 +22,7 @@ References
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,7 +56,8 @@ class GenericFit:
     anchors : list of str
         The found points the fit followed (outliers left out).
     gap : float
-        Median distance of the matched generic vertices from the surface, metres.
+        Median distance of the matched generic vertices from the surface in the last
+        round of matching, metres.
     move : callable
         ``move(points) -> points``: (K, 3) points of the generic head's frame carried by
         the fit (the similarity and the displacement field), such as points inside it.
@@ -66,7 +67,7 @@ class GenericFit:
     points: dict
     anchors: list
     gap: float
-    move: object
+    move: Callable[[np.ndarray], np.ndarray]
 
 
 def _vertex_normals(v: np.ndarray, t: np.ndarray) -> np.ndarray:

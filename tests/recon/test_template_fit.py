@@ -10,8 +10,7 @@ import pytest
 
 from mpeg4.errors import InputError
 from mpeg4.io import load_head
-
-from recon.template_fit import fit_generic  # noqa: E402
+from recon.template_fit import fit_generic
 
 SEEN_GROUPS = (3, 8, 9)
 NOT_SKIN = ("3.5", "3.6", "9.8", "9.9", "9.10", "9.11")  # pupils, teeth
@@ -24,7 +23,10 @@ def identity(remeshed):
     head = load_head(mf.path, feature_points=False)
     skin = max(head.parts.values(), key=lambda p: p.n_vertices)
     back = np.linalg.inv(mf.to_file)
-    to_neutral = lambda p: np.asarray(p) @ back[:3, :3].T + back[:3, 3]  # noqa: E731
+
+    def to_neutral(p):
+        return np.asarray(p) @ back[:3, :3].T + back[:3, 3]
+
     truth = {i: to_neutral(p) for i, p in mf.points.items()}
     return to_neutral(skin.vertices), skin.triangles, truth
 
@@ -41,7 +43,10 @@ def test_points_no_render_shows_follow_the_shape(identity):
     found = _noisy(truth, seen, 0.0015)
     fit = fit_generic(v, t, found, give=1e-3)
     assert fit.gap < 0.0005  # the generic skin lies on the surface
-    err = lambda i: 1000 * np.linalg.norm(fit.points[i] - truth[i])  # noqa: E731
+
+    def err(i):
+        return 1000 * np.linalg.norm(fit.points[i] - truth[i])
+
     brows = [err(i) for i in ("4.1", "4.2", "4.3", "4.4", "4.5", "4.6")]
     hairline = [err(i) for i in ("11.1", "11.2", "11.3")]
     ears = [err(i) for i in ("10.1", "10.2", "10.5", "10.6", "10.9", "10.10")]
