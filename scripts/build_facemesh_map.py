@@ -70,7 +70,6 @@ ANATOMY = {
     "9.6": "side of the nose bridge by the eye, right", "9.7": "side of the nose bridge by the eye, left",
     "9.12": "nose bridge, midline", "9.13": "side of the nose bridge, left", "9.14": "side of the nose bridge, right",
     "9.15": "under the nose, midline",
-    "9.4": "base of the nose wing, right", "9.2": "outer edge of the nose wing, right",
     "10.1": "top of the ear, left", "10.2": "top of the ear, right", "10.3": "back of the ear, left",
     "10.4": "back of the ear, right", "10.5": "ear lobe, left", "10.6": "ear lobe, right",
     "10.7": "where the lobe joins the face, left", "10.8": "where the lobe joins the face, right",

@@ -110,8 +110,8 @@ def hairline_on(lab: np.ndarray, centres: np.ndarray, across: np.ndarray, half_w
     The colour is averaged across a band ``half_width`` pixels either side of the path at
     each of its points; the hairline is the first sharp change of colour (the colours
     ``scale`` points above and below differ by a good part of the difference between skin
-    and hair, less in the shade) with hair above it (:func:`hair_share`), at the steepest
-    place of that change. A smooth change, such as shading over the temple, is no hairline
+    and hair, less in the shade) with hair above it and skin below (:func:`hair_share`), at
+    the steepest place of that change. A smooth change, such as shading over the temple, is no hairline
     however dark it gets.
 
     Parameters
@@ -153,10 +153,11 @@ def hairline_on(lab: np.ndarray, centres: np.ndarray, across: np.ndarray, half_w
     # The change to expect: a good part of the skin-to-hair difference, less in the shade
     # (a darker patch of skin is nearer dark hair).
     shade = np.clip(below[:, 0] / max(skin.mean[0], 1.0), 0.3, 1.0)
-    need = np.maximum(0.3 * (np.linalg.norm(hair.mean - skin.mean) if hair is not None else 40.0) * shade, 6.0)
+    need = np.maximum(0.3 * (np.linalg.norm(hair.mean - skin.mean) if hair is not None else 40.0) * shade, 4.0)
     for j in np.flatnonzero(contrast > need):
         share = hair_share(band[min(len(band) - 1, k[j] + n)], skin, hair)
-        if share < 0.6:
+        # Hair above, skin below (not a change within the hair, a fringe's shadow).
+        if share < 0.6 or hair_share(band[max(0, k[j] - n)], skin, hair) > 0.4:
             continue
         # The steepest place of this change.
         run = j

@@ -31,8 +31,10 @@ __all__ = ["SOURCES", "ViewPoints", "detect_front", "skin_and_hair", "hairline_a
 SOURCES = ("model", "silhouette", "rule")
 
 # Face mesh landmarks used below by name (the surface mesh's own numbering).
-_FOREHEAD = (151, 108, 337, 109, 338)  # skin patches for the colour model, with the cheeks
-_CHEEKS = (50, 280, 205, 425, 118, 347)
+# Skin patches for the colour model: the cheeks and the nose's bridge, which no fringe
+# hides, and the forehead where it looks like them.
+_SKIN = (50, 280, 205, 425, 118, 347, 168, 6, 197)
+_FOREHEAD = (151, 108, 337, 109, 338)
 _FOREHEAD_TOP, _NASION, _CHIN = 10, 168, 152
 _OVAL_LEFT = (10, 338, 297, 332, 284, 251, 389, 356, 454, 323, 361, 288, 397, 365, 379, 378, 400, 377, 152)
 _OVAL_RIGHT = (10, 109, 67, 103, 54, 21, 162, 127, 234, 93, 132, 58, 172, 136, 150, 149, 176, 148, 152)
@@ -73,10 +75,16 @@ class ViewPoints:
 
 def skin_and_hair(lab: np.ndarray, mask: np.ndarray, lm: np.ndarray, top: np.ndarray, up: np.ndarray,
                   ipd: float) -> tuple[ColourModel, ColourModel | None]:
-    """The skin's colour model (the face mesh's forehead and cheeks) and the hair's (the crown
-    just below the top of the silhouette), None when the crown is skin-coloured (no hair)."""
+    """The skin's colour model (the face mesh's cheeks and nose bridge, and the forehead
+    where it matches them) and the hair's (the crown just below the top of the silhouette),
+    None when the crown is skin-coloured (no hair)."""
     r = max(2, int(0.03 * ipd))
-    skin = ColourModel.fit(sample_patches(lab, lm[list(_FOREHEAD + _CHEEKS), :2], r))
+    skin = ColourModel.fit(sample_patches(lab, lm[list(_SKIN), :2], r))
+    # The forehead too, where it is skin (not under a fringe): its light differs.
+    forehead = sample_patches(lab, lm[list(_FOREHEAD), :2], r)
+    forehead = forehead[skin.distance2(forehead) < FAR]
+    if len(forehead) > 10:
+        skin = ColourModel.fit(np.concatenate([sample_patches(lab, lm[list(_SKIN), :2], r), forehead]))
     across = np.array([-up[1], up[0]])
     crown = [top - d * ipd * up + a * ipd * across for d in (0.08, 0.16, 0.24) for a in (-0.2, 0.0, 0.2)]
     crown = sample_patches(lab, np.array(crown), r, mask)
@@ -346,16 +354,24 @@ def detect_front(image: np.ndarray, where: str = "front photo") -> ViewPoints:
     # Hairline: skin colour up the forehead's midline and above the eyebrows' outer ends.
     lab = to_lab(image)
     skin, hair_model = skin_and_hair(lab, front.mask, lm, top, up, ipd)
-    start = lm[151, :2]
-    hair, strength = hairline_along(lab, front.mask, start, up, 0.08 * ipd, skin, hair_model, 0.08 * ipd)
+    # From between the eyebrows up the midline (a fringe may hide the forehead's middle).
+    hair, strength = hairline_along(lab, front.mask, lm[9, :2], up, 0.08 * ipd, skin, hair_model, 0.08 * ipd)
     if hair is not None:
         front.put("11.1", hair, 0.45 + 0.4 * strength, "silhouette")
     else:  # no hair on the forehead: as high above the brows as the nose base is below them
         glabella = 0.5 * (pts["4.1"] + pts["4.2"])
         front.put("11.1", glabella + (glabella - pts["9.15"]), 0.25, "rule")
+    across = np.array([-up[1], up[0]])
     for fp, brow in (("11.3", "4.5"), ("11.2", "4.6")):
-        # From above the eyebrow (its top, 4.3/4.4, is higher than its outer end).
-        above = pts[brow] + ((pts[{"4.5": "4.3", "4.6": "4.4"}[brow]] - pts[brow]) @ up + 0.15 * ipd) * up
+        # From just above the eyebrow's top (4.3/4.4, higher than its outer end 4.5/4.6).
+        above = pts[brow] + ((pts[{"4.5": "4.3", "4.6": "4.4"}[brow]] - pts[brow]) @ up + 0.12 * ipd) * up
+        band = above + np.linspace(-0.05, 0.05, 9)[:, None] * ipd * across
+        colours = lab_at(lab, band)
+        fringe = hair_share(colours, skin, hair_model) > 0.6 and (
+            hair_model is None or np.median(hair_model.distance2(colours)) < 0.5 * FAR)
+        if fringe:  # hair down to the brows
+            front.put(fp, above, 0.35, "silhouette")
+            continue
         found, strength = hairline_along(lab, front.mask, above, up, 0.05 * ipd, skin, hair_model, 0.08 * ipd)
         if found is not None:
             front.put(fp, found, 0.4 + 0.4 * strength, "silhouette")

@@ -21,12 +21,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MIDLINE", "FEATURES", "ProfileFit", "fit_profile", "profile_features", "outline_distance"]
+__all__ = ["MIDLINE", "ProfileFit", "fit_profile", "outline_distance"]
 
 #: The largest roll :func:`fit_profile` considers, radians (20 degrees).
 MAX_ANGLE = 0.35
-PRIOR = (1.0, 4.0)
-ANCHORS = False
+#: The priors of the fit, as one standard deviation: the side photo's scale within 4 % of
+#: ``scale_guess`` (photos taken alike), the roll within a degree (the head held alike;
+#: the face mesh's depth, its weakest part, must not tilt the heights the front photo gives).
+SCALE_SPREAD = 0.04
+ROLL_SPREAD = np.radians(1.0)
 #: Face mesh landmarks on the face's midline that the profile shows, from the top of the
 #: forehead to under the chin (not the inner lips, hidden behind the outer ones).
 MIDLINE = (10, 151, 9, 8, 168, 6, 197, 195, 5, 4, 1, 19, 94, 2, 164, 0, 17, 18, 200, 199, 175, 152)
@@ -79,85 +82,15 @@ def outline_distance(mask: np.ndarray) -> np.ndarray:
     return ndi.distance_transform_edt(~edge).astype(np.float32)
 
 
-def _extreme(curve: np.ndarray, lo: float, hi: float, kind: str) -> int | None:
-    """Row of a profile curve's most forward (``"out"``, smallest x) or most backward
-    (``"in"``) point between two rows, the middle of it where it runs level."""
-    a, b = int(max(0, np.floor(min(lo, hi)))), int(min(len(curve) - 1, np.ceil(max(lo, hi))))
-    seg = curve[a:b + 1]
-    if b <= a or not np.isfinite(seg).any():
-        return None
-    seg = seg if kind == "out" else -seg
-    best = np.nanmin(seg)
-    level = np.flatnonzero(seg <= best + 1.0)
-    # The run of level rows around the first extreme, and its middle.
-    k = level[0]
-    run = [k]
-    for j in level[1:]:
-        if j != run[-1] + 1:
-            break
-        run.append(j)
-    return a + int(round(0.5 * (run[0] + run[-1])))
-
-
-#: Face mesh landmarks near the profile's own landmarks, to look for them near: the nose
-#: tip, under the nose, the upper lip, the mouth (between the inner lips), the lower lip,
-#: the fold under it and the chin; and whether each is a forward bump or a hollow.
-FEATURES = {"tip": ((1,), "out"), "subnasale": ((2,), "in"), "upper_lip": ((0,), "out"), "mouth": ((13, 14), "in"),
-            "lower_lip": ((17,), "out"), "fold": ((18,), "in"), "chin": ((175,), "out")}
-
-
-def profile_features(prof: np.ndarray, guesses: dict[str, float], ipd: float) -> dict[str, int]:
-    """Rows of the profile's own landmarks (:data:`FEATURES`), each the curve's most forward
-    point (a bump) or most backward point (a hollow) within 0.15 IPD of where it is expected,
-    kept only when it is that window's extreme inside it, standing out of the window's ends
-    by at least 2 % of the IPD (a lip that does not stand out is no landmark).
-
-    Parameters
-    ----------
-    prof : (H,) float
-        Column of the profile in each row (the nose towards the image's left), NaN where none.
-    guesses : dict of str to float
-        Expected rows, by :data:`FEATURES` name.
-    ipd : float
-        Distance between the pupils in the side photo's scale, pixels.
-
-    Returns
-    -------
-    dict of str to int
-        Rows of those found.
-    """
-    out = {}
-    half = 0.15 * ipd
-    for name, row in guesses.items():
-        kind = FEATURES[name][1]
-        k = _extreme(prof, row - half, row + half, kind)
-        if k is None:
-            continue
-        a, b = int(max(0, row - half)), int(min(len(prof) - 1, row + half))
-        ends = prof[[a, b]]
-        if not np.isfinite(ends).all() or not a < k < b:
-            continue
-        stand = (np.min(ends) - prof[k]) if kind == "out" else (prof[k] - np.max(ends))
-        if stand >= 0.02 * ipd:
-            out[name] = k
-    return out
-
-
-#: The profile's landmarks whose heights hold the fit: under the nose and the mouth, the
-#: sharpest hollows of the profile (a bump's most forward point runs level over rows).
-_HEIGHT_ANCHORS = ("subnasale", "mouth")
-
-
 def fit_profile(mask: np.ndarray, landmarks: np.ndarray, front_top: float, ipd_front: float,
                 scale_guess: float = 1.0, distance: np.ndarray | None = None) -> ProfileFit:
     """Lay the face mesh's midline onto a profile silhouette facing left.
 
-    Two stages. First a chamfer fit from several starts: the midline landmarks drawn to the
-    outline, the top of the head kept level with the silhouette's top. Then, with the
-    profile's own landmarks found near where that fit puts them (:func:`profile_features`),
-    again with the heights of the point under the nose and of the mouth held to theirs: the
-    face mesh's depth is its weakest part, and it must not tilt or shrink the heights the
-    front photo gives.
+    A chamfer fit from several starts (scales around ``scale_guess`` and around the one
+    that puts the nose tip at the silhouette's most forward point): the midline landmarks
+    drawn to the outline (robustly: a lip or a chin the mesh gets wrong does not pull the
+    rest), the top of the head kept level with the silhouette's top, and the scale and roll
+    held near the photos' own (:data:`SCALE_SPREAD`, :data:`ROLL_SPREAD`).
 
     Parameters
     ----------
@@ -200,7 +133,6 @@ def fit_profile(mask: np.ndarray, landmarks: np.ndarray, front_top: float, ipd_f
     nose = landmarks[1, [2, 1]]
     tip_z, tip_y = float(nose[0]), float(nose[1])
     z_top = float(landmarks[10, 2])
-    anchors = {}
 
     def residuals(x):
         fit = ProfileFit(x[0], x[1], x[2:4], 0.0)
@@ -208,12 +140,10 @@ def fit_profile(mask: np.ndarray, landmarks: np.ndarray, front_top: float, ipd_f
         d = ndi.map_coordinates(dist, [np.clip(uv[:, 1], 0, h - 1), np.clip(uv[:, 0], 0, w - 1)], order=1)
         # Outside the photo counts as far off.
         off = np.maximum(0, -uv).sum(axis=1) + np.maximum(0, uv - [w - 1, h - 1]).sum(axis=1)
-        extra = [(3.0 if anchors else 0.5) * (fit.apply([[z_top, front_top]])[0, 1] - top)]
-        for name, (zy_a, row) in anchors.items():
-            extra.append(3.0 * (fit.apply(zy_a[None])[0, 1] - row))
-        # Priors: photos taken alike (the same scale), the head held alike (no roll).
+        # The top of the head level with the silhouette's top, and the priors.
         f = 0.02 * x[0] * ipd_front
-        extra += [PRIOR[0] * f * (x[0] / scale_guess - 1) / 0.04, PRIOR[1] * f * x[1] / np.radians(4)]
+        extra = [0.5 * (fit.apply([[z_top, front_top]])[0, 1] - top),
+                 f * (x[0] / scale_guess - 1) / SCALE_SPREAD, f * x[1] / ROLL_SPREAD]
         return np.r_[d + off, extra]
 
     def solve(x0):
@@ -248,13 +178,4 @@ def fit_profile(mask: np.ndarray, landmarks: np.ndarray, front_top: float, ipd_f
                 best = fit
     if best is None:
         raise ValueError("no profile to fit")
-    ipd_s = best.scale * ipd_front
-    guesses = {name: float(best.apply(landmarks[list(ids)][:, [2, 1]].mean(axis=0)[None])[0, 1])
-               for name, (ids, _) in FEATURES.items()}
-    found = profile_features(prof, guesses, ipd_s)
-    for name in _HEIGHT_ANCHORS:
-        if name in found:
-            anchors[name] = (landmarks[list(FEATURES[name][0])][:, [2, 1]].mean(axis=0), float(found[name]))
-    if not anchors or not ANCHORS:
-        return best
-    return solve(np.r_[best.scale, best.angle, best.offset])
+    return best

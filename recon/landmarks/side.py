@@ -6,17 +6,18 @@ that the nose points to the image's left (the face's nose is the sharpest bump e
 curve has). Then:
 
 - the front photo's face mesh is laid onto the profile (:func:`recon.landmarks.profile.fit_profile`):
-  its midline landmarks drawn onto the silhouette's outline by a similarity with a stretch
-  in depth. That fit carries every landmark's depth and height (the height from the front
-  photo) into the side photo, and with them the feature points, by the side table
+  its midline landmarks drawn onto the silhouette's outline by a similarity. The fit
+  carries the landmarks' depth and height (the height the front photo gives) into the side
+  photo, and with them every feature point, by the side table
   (:mod:`recon.landmarks.mapping`, ``recon/data/facemesh_side.csv``), for either side;
-- on the profile (``P`` in the catalogue), the points are moved onto the silhouette's own
-  curve: the nose tip to its most forward point, the point under the nose to the deepest
-  point below it, the lips and the chin to their extremes; the top of the head is the
-  silhouette's top, the back of the skull where the back curve is at the height the table
-  gives, the hairline where the forehead stops being skin-coloured;
-- the ear: where the table puts it, moved onto the ear's own outline in the photo when that
-  shows (:func:`ear_in_profile`).
+- the face mesh's depth is its weakest part, off by a few millimetres for a whole eye, a
+  mouth or an ear at a time: where the photo shows them (:mod:`recon.landmarks.side_parts`:
+  the white of the eye, the lips, the ear's outline), their points move onto them, and the
+  points around them by the share of their depth behind the profile;
+- the points on the profile (``P`` in the catalogue) go onto the silhouette's outline,
+  the nearest place of it; the hairline is where the forehead, just inside the outline,
+  turns from skin to hair; the top of the head is the silhouette's top, the back of the
+  skull on the back curve as far down as the generic head has it.
 """
 
 from __future__ import annotations
@@ -76,44 +77,6 @@ def facing_of(mask: np.ndarray) -> str:
     lb = _bumpiness(left[head], scale)
     rb = _bumpiness(-right[head], scale)
     return "left" if lb >= rb else "right"
-
-
-def _extreme(curve: np.ndarray, lo: float, hi: float, kind: str) -> int | None:
-    """Row of the curve's min (``"out"``, most forward) or max (``"in"``) between rows."""
-    a, b = int(max(0, np.floor(min(lo, hi)))), int(min(len(curve) - 1, np.ceil(max(lo, hi))))
-    seg = curve[a:b + 1]
-    if not np.isfinite(seg).any():
-        return None
-    k = np.nanargmin(seg) if kind == "out" else np.nanargmax(seg)
-    return a + int(k)
-
-
-def _profile_hairline(image: np.ndarray, prof: np.ndarray, start: int, stop: int, ipd: float):
-    """First row above ``start`` (the nose bridge) where the pixels just inside the profile
-    are no longer the colour of the skin below; None when they stay skin to ``stop``."""
-    from .colour import ColourModel, hair_share, lab_at, sample_patches, to_lab
-    image = to_lab(image)
-
-    inset = 0.06 * ipd
-    rows = np.arange(start - int(0.5 * ipd), stop, -1)
-    rows = rows[np.isfinite(prof[rows])]
-    if len(rows) < 10:
-        return None
-    # Skin: the forehead between the bridge and a little above the brows.
-    seed = rows[: max(3, int(0.3 * ipd))]
-    skin = ColourModel.fit(sample_patches(image, np.c_[prof[seed] + inset, seed], max(1, int(0.02 * ipd))))
-    need = max(3, int(0.04 * ipd))
-    run = 0
-    for r in rows:
-        band = np.c_[prof[r] + inset * np.array([0.6, 1.0, 1.4, 1.8]), np.full(4, r)]
-        if hair_share(lab_at(image, band), skin, None) >= 0.75:
-            run += 1
-            if run >= need:
-                r0 = r + need - 1
-                return np.array([prof[r0], float(r0)])
-        else:
-            run = 0
-    return None
 
 
 def _apex(mask: np.ndarray, y_top: float, depth: float) -> float:
@@ -190,14 +153,27 @@ def register_profile(image: np.ndarray, front: ViewPoints, front_height: int,
     return fit, {"image": image, "mask": mask, "flipped": flip, "distance": dist}
 
 
+#: An ear is taken as found when the gradient along its outline is this many times the
+#: window's median.
+EAR_CONTRAST = 1.5
 #: Points on the profile (the catalogue's ``P`` in the side view) that the face mesh's
 #: table puts near it.
 _ON_PROFILE = ("9.12", "9.3", "9.15", "8.1", "8.2", "2.10", "2.1", "11.1")
-SNAP = True
 #: Points off the profile that move with the eye, and with the mouth, when either is seen
 #: (the left side's ids).
-_EYE = ("3.1", "3.3", "3.5", "3.7", "3.9", "3.13", "4.3", "4.5", "5.3")
+_EYE = ("3.1", "3.3", "3.5", "3.7", "3.9", "4.5")
+_AROUND_EYE = ("3.13", "4.3", "5.3")
 _MOUTH = ("8.3", "8.5", "8.7", "2.4")
+_JAW = ("2.13",)
+
+
+def _back_share() -> float:
+    """How far down the back of the skull (11.6) is on the generic head, as a share of the
+    height from the top of the head (11.4) to under the nose (9.15)."""
+    from recon.annotate.placement import generic_layout
+
+    side = generic_layout()["side"]
+    return float((side["11.6"][1] - side["11.4"][1]) / (side["9.15"][1] - side["11.4"][1]))
 
 
 def _own(fp: str, side: str) -> str:
@@ -221,6 +197,28 @@ def _side_colours(lab: np.ndarray, mask: np.ndarray, cheek: np.ndarray, y_top: f
     if len(lab_c) < 10 or np.median(skin.distance2(lab_c)) < 0.4 * FAR:
         return skin, None
     return skin, ColourModel.fit(lab_c)
+
+
+def _generic_ear(where: dict[str, np.ndarray], ipd: float) -> dict[str, np.ndarray]:
+    """The generic head's ear outline (:data:`~recon.landmarks.side_parts.EAR_OUTLINE`)
+    as a side photo nose-left shows it, ``ipd`` pixels between the pupils, centred where
+    ``where``'s points are."""
+    from recon.annotate.placement import generic_layout
+
+    layout = generic_layout()
+    g_ipd = float(np.linalg.norm(layout["front"]["3.5"] - layout["front"]["3.6"]))
+    ids = list(where)
+    g = np.array([layout["side"][i] for i in ids]) * (ipd / g_ipd)
+    g += np.mean([where[i] for i in ids], axis=0) - g.mean(axis=0)
+    return dict(zip(ids, g))
+
+
+def _shift(points: dict, ids, anchor_pred: np.ndarray, anchor_found: np.ndarray) -> None:
+    """Move ``ids`` in depth by what the anchor moved."""
+    dx = anchor_found[0] - anchor_pred[0]
+    for fp in ids:
+        if fp in points:
+            points[fp] = points[fp] + [dx, 0.0]
 
 
 def _stretch(points: dict, ids, prof: np.ndarray, anchor_pred: np.ndarray, anchor_found: np.ndarray) -> float:
@@ -286,14 +284,18 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int, where: 
     rows = np.flatnonzero(np.isfinite(prof))
     y_top = float(rows[0])
     lab = to_lab(image)
-    own = {fp: _own(fp, side) for fp in _EYE + _MOUTH + EAR_OUTLINE + ("5.1",)}
+    own = {fp: _own(fp, side) for fp in _EYE + _AROUND_EYE + _MOUTH + _JAW + EAR_OUTLINE + ("5.1",)}
     # The eye and the mouth, seen: their points move with them, the depth behind the profile
     # stretched (the face mesh's depth is off by a share, more for what lies deeper).
     eye = eye_white(lab, mask, 0.5 * (pts[own["3.5"]] + pts[own["3.7"]]), ipd)
     if eye is not None:
-        _stretch(pts, [own[i] for i in _EYE], prof, pts[own["3.7"]], eye["back"])
+        # The eye's own points move with it; those around it (lid fold, brow, cheekbone) by
+        # the share of their depth behind the profile.
+        anchor = pts[own["3.7"]].copy()
+        _stretch(pts, [own[i] for i in _AROUND_EYE], prof, anchor, eye["back"])
+        _shift(pts, [own[i] for i in _EYE], anchor, eye["back"])
         pts[own["3.7"]] = eye["back"]
-        for fp in _EYE:
+        for fp in _EYE + _AROUND_EYE:
             conf[own[fp]] = min(0.8, conf[own[fp]] + 0.15)
     lips = lip_region(lab, mask, pts[own["8.3"]], ipd)
     if lips is not None:
@@ -303,16 +305,15 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int, where: 
             conf[own[fp]] = min(0.8, conf[own[fp]] + 0.15)
     # The ear: its outline slid onto the strongest edges near where the mesh puts it.
     skin, hair = _side_colours(lab, mask, np.array([pts[own["5.3"]], pts[own["5.1"]]]), y_top, ipd)
-    expected = {}
-    for i in EAR_OUTLINE:
-        zy = depth_height[own[i]].copy()
-        # The ear's heights from the front photo, where it showed there.
-        key = FEATURE_POINTS[own[i]].mirror if flip else own[i]
-        if front.source.get(key) == "silhouette" and EAR_FRONT_HEIGHTS:
-            zy[1] = front.points[key][1]
-        expected[i] = fit.apply(zy[None])[0]
+    # The ear's shape is the generic head's, at the person's scale, where the table puts it
+    # (the table's own ear, an average, comes out smaller than any one ear).
+    expected = _generic_ear({i: pts[own[i]] for i in EAR_OUTLINE}, ipd)
     ear = ear_box(lab, mask, expected, ipd, skin, hair)
     if ear is not None and ear["contrast"] > EAR_CONTRAST:
+        before = np.mean([pts[own[i]] for i in EAR_OUTLINE], axis=0)
+        after = np.mean([ear[i] for i in EAR_OUTLINE], axis=0)
+        # The jaw's angle, below the ear, is as far off in depth as the ear was.
+        _stretch(pts, [own[i] for i in _JAW], prof, before, after)
         for i in EAR_OUTLINE:
             pts[own[i]] = ear[i]
             conf[own[i]] = 0.5
@@ -331,7 +332,7 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int, where: 
                 conf["11.1"] = 0.4 + 0.3 * strength
     # Points on the profile: onto the silhouette's outline, the nearest place of it.
     outline = np.argwhere(ctx["distance"] < 0.75)[:, ::-1].astype(float)
-    if len(outline) and SNAP:
+    if len(outline):
         from scipy.spatial import cKDTree
 
         tree = cKDTree(outline)
@@ -349,7 +350,7 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int, where: 
     out.put("11.4", (top_x, y_top - 0.5), 0.45, "rule")
     # The back of the skull: on the back of the silhouette, as far down from the top as
     # the generic head has it between the top and under the nose.
-    r = int(np.clip(round(y_top + BACK_SHARE * (out.points["9.15"][1] - y_top)), rows[0], rows[-1]))
+    r = int(np.clip(round(y_top + _back_share() * (out.points["9.15"][1] - y_top)), rows[0], rows[-1]))
     if np.isfinite(back[r]):
         out.put("11.6", (back[r], r), 0.6, "silhouette")
     out.extras.update(eye=eye, lips=lips, ear=ear)
@@ -367,6 +368,3 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int, where: 
     return out, side
 
 
-EAR_CONTRAST = 1.5
-EAR_FRONT_HEIGHTS = False
-BACK_SHARE = 0.5638

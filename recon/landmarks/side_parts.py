@@ -143,8 +143,8 @@ EAR_OUTLINE = ("10.9", "10.1", "10.3", "10.5", "10.7")
 
 
 def _edges(lab: np.ndarray, mask: np.ndarray, box: tuple[int, int, int, int], ipd: float, skin, hair) -> np.ndarray:
-    """Lightness gradient in a box (x0, y0, x1, y1), zero on the hair, near its edge and
-    near the silhouette's edge."""
+    """Lightness gradient's size in a box (x0, y0, x1, y1), zero on the hair, near its edge
+    and near the silhouette's edge."""
     from scipy import ndimage as ndi
 
     from .colour import FAR
