@@ -5,9 +5,12 @@ Three sources, each point keeping the name of its own (:data:`SOURCES`):
 - ``model``: the face mesh's landmarks mapped by the table (:mod:`recon.landmarks.mapping`),
   the pupils at the iris centres;
 - ``silhouette``: what the mesh does not cover, read off the head's silhouette and colours —
-  the top of the hair (11.5) where the face's midline leaves the silhouette, the hairline
-  (11.1, and 11.2/11.3 above the outer ends of the eyebrows) where skin colour gives way
-  going up the forehead, the ears where they stand out of the head's outline;
+  the top of the hair (11.5) where the face's midline leaves the silhouette; the hairline
+  (11.1 up the midline from between the brows, 11.2/11.3 above the outer ends of the
+  eyebrows) at the first sharp change from skin to hair colour
+  (:func:`recon.landmarks.colour.hairline_on`), or at the brows when a fringe comes down
+  to them; the ears where the head's outline steps out and back in beside the face, and
+  the bump is skin-coloured (:func:`ear_from_outline`);
 - ``rule``: proportions of the face when the photo shows nothing better (the top of the
   skull 11.4 under the hair, a hairline that is not there, ears hidden by hair).
 """

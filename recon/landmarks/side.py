@@ -309,7 +309,9 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int, where: 
     # (the table's own ear, an average, comes out smaller than any one ear).
     expected = _generic_ear({i: pts[own[i]] for i in EAR_OUTLINE}, ipd)
     ear = ear_box(lab, mask, expected, ipd, skin, hair)
-    if ear is not None and ear["contrast"] > EAR_CONTRAST:
+    if ear is not None and ear["contrast"] <= EAR_CONTRAST:
+        ear = None
+    if ear is not None:
         before = np.mean([pts[own[i]] for i in EAR_OUTLINE], axis=0)
         after = np.mean([ear[i] for i in EAR_OUTLINE], axis=0)
         # The jaw's angle, below the ear, is as far off in depth as the ear was.
