@@ -272,8 +272,14 @@ def place_muscles(head: Head, placement: dict | None = None) -> list[Muscle]:
 # --- geometry of the parametric layer ---------------------------------------------------
 
 def _edge_graph(part) -> sp.csr_matrix:
+    """The mesh's edges weighted by length, with copies of one vertex (a texture seam stores
+    a vertex once per side) joined, so that distances run across seams."""
     t = part.triangles
     e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
+    _, first, inverse = np.unique(np.round(part.vertices, 9), axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    copies = np.flatnonzero(first[inverse] != np.arange(part.n_vertices))
+    e = np.concatenate([e, np.c_[copies, first[inverse[copies]]]])
     w = np.linalg.norm(part.vertices[e[:, 0]] - part.vertices[e[:, 1]], axis=1) + 1e-12
     n = part.n_vertices
     g = sp.coo_matrix((w, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()

@@ -2,8 +2,9 @@
 
 Stages, one module each as they land: ``landmarks`` and ``annotate`` (2D feature points),
 ``calibrate`` (3D points), ``deform`` (Dirichlet free-form deformation of the generic
-head), ``texture``, ``build`` and ``batch``. ``example`` runs the main job on the embedded
-example.
+head), ``texture``, ``build`` and ``batch`` (many heads). ``example`` runs the main job on the
+embedded example; ``animatable`` is the clone step a batch row may end with. Both reach
+:mod:`fmc` only when called: ``recon`` itself never imports it.
 """
 
 __all__ = ["run_example"]

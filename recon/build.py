@@ -38,8 +38,8 @@ from .cameras import FittedCamera, fit_camera
 from .fit import attach_photo_sizes, fit_head, require_views
 from .photos import check_photo, read_photo
 
-__all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "run_build", "bundle_fdp", "preview_with_photos",
-           "DEFAULT_TEXTURE_SIZE"]
+__all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "run_build", "bundle_fdp", "build_time",
+           "preview_with_photos", "DEFAULT_TEXTURE_SIZE"]
 
 #: Texture size (pixels, square) unless asked otherwise.
 DEFAULT_TEXTURE_SIZE = 2048
@@ -246,10 +246,28 @@ def _version() -> str:
         return "unknown"
 
 
-def bundle_fdp(head: Head, shape: PhotoPair, texture: PhotoPair | None, options: dict):
+def build_time(created: str | None = None) -> str:
+    """The provenance time stamp: ``created`` if given, else ``SOURCE_DATE_EPOCH`` (seconds
+    since 1970, the reproducible-builds convention) if set, else now; ISO 8601, UTC."""
+    if created is not None:
+        return created
+    epoch = os.environ.get("SOURCE_DATE_EPOCH")
+    if epoch:
+        try:
+            t = int(epoch)
+        except ValueError:
+            raise InputError(f"SOURCE_DATE_EPOCH is {epoch!r}, not a whole number of seconds",
+                             where="environment", fix="set it to seconds since 1970-01-01 UTC, or unset it") from None
+    else:
+        t = time.time()
+    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(t))
+
+
+def bundle_fdp(head: Head, shape: PhotoPair, texture: PhotoPair | None, options: dict,
+               created: str | None = None, provenance: dict | None = None):
     """The ``head.fdp.json`` of a build: 3D points, bindings, texture coordinates, FAPU, the
     annotations of the shape's photos and the provenance (inputs with their SHA-256,
-    options, version)."""
+    options, version, time: see :func:`build_time`; ``provenance`` adds entries)."""
     from mpeg4.io import fdp_from_head
 
     fdp = fdp_from_head(head)
@@ -259,7 +277,7 @@ def bundle_fdp(head: Head, shape: PhotoPair, texture: PhotoPair | None, options:
         inputs["texture"] = {k: {"path": v, "sha256": _sha256(v)} for k, v in texture.paths.items()}
     meta = {k: v for k, v in fdp.metadata.items() if k not in ("duplicated_vertices",)}
     meta["provenance"] = {"tool": "recon build", "version": _version(), "inputs": inputs, "options": options,
-                          "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}
+                          "created": build_time(created), **(provenance or {})}
     fdp.metadata = meta
     return fdp
 
@@ -286,7 +304,7 @@ def preview_with_photos(head: Head, pair: PhotoPair, size: int = 720) -> np.ndar
 
 
 def _write_bundle(result: BuildResult, shape: PhotoPair, texture: PhotoPair | None, options: dict,
-                  folder: Path, say) -> dict[str, Path]:
+                  folder: Path, say, created: str | None = None, provenance: dict | None = None) -> dict[str, Path]:
     import cv2
 
     from mpeg4.io import save_head, write_fdp_json
@@ -301,7 +319,7 @@ def _write_bundle(result: BuildResult, shape: PhotoPair, texture: PhotoPair | No
     write_obj(head, paths["obj"], texture_names={"skin": "texture.png"})
     paths.update({f"texture_{n}": folder / f"head_{n}.png" for n, p in head.parts.items()
                   if p.texture is not None and n != "skin"})
-    fdp = bundle_fdp(head, shape, texture, options)
+    fdp = bundle_fdp(head, shape, texture, options, created, provenance)
     fdp.metadata["obj_parts"] = {n: {"centre": None if p.centre is None else p.centre.tolist()}
                                  for n, p in head.parts.items()}
     write_fdp_json(paths["fdp"], fdp)
@@ -318,7 +336,8 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
               out_dir: str | os.PathLike, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
               method: str = "dffd", texture_size: int = DEFAULT_TEXTURE_SIZE, atlas: bool = False,
               shape_from: str | os.PathLike | None = None, texture_from: str | os.PathLike | None = None,
-              progress: Callable[[str], None] | None = None, result: list | None = None) -> dict[str, Path]:
+              progress: Callable[[str], None] | None = None, result: list | None = None,
+              created: str | None = None, provenance: dict | None = None) -> dict[str, Path]:
     """``recon build``: write the textured head bundle.
 
     Parameters
@@ -340,6 +359,11 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
     result : list, optional
         If given, the :class:`BuildResult` is appended to it (for callers that go on with
         the head).
+    created : str, optional
+        The provenance's time stamp (see :func:`build_time`; set it, or
+        ``SOURCE_DATE_EPOCH``, for byte-identical ``head.fdp.json`` files across runs).
+    provenance : dict, optional
+        More entries for the provenance (``recon batch`` adds the manifest row).
 
     Returns
     -------
@@ -368,7 +392,7 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
     out.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=".build-", dir=out))
     try:
-        written = _write_bundle(res, shape, texture, options, tmp, say)
+        written = _write_bundle(res, shape, texture, options, tmp, say, created, provenance)
         final = {}
         for key, p in written.items():
             if p.exists():

@@ -68,8 +68,48 @@ def build(front: Path = typer.Argument(None, help="Front photo (JPEG/PNG); by de
 
 
 @app.command()
-def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
-             side: Path = typer.Argument(..., help="Side (profile) photo."),
+def batch(manifest: Path = typer.Argument(..., help="Manifest: one person a row (.csv with a header, or .jsonl)."),
+          out: Path = typer.Option(Path("batch_out"), "-o", "--out", help="Output folder: OUT/<id>/ per person, "
+                                                                          "OUT/report.jsonl."),
+          workers: int = typer.Option(None, "--workers", help="Local worker processes (default: one per CPU)."),
+          scheduler: str = typer.Option(None, "--scheduler", help="Run on this Dask cluster instead "
+                                                                  "(tcp://HOST:8786)."),
+          ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm, for rows that give none."),
+          focal: float = typer.Option(None, "--focal", help="Focal length in pixels, for rows that give none; "
+                                                            "orthographic cameras if omitted."),
+          method: str = typer.Option("dffd", "--method", help="dffd or rbf, for rows that give none."),
+          texture_size: int = typer.Option(2048, "--texture-size", help="Texture side in pixels, for rows that "
+                                                                        "give none."),
+          atlas: bool = typer.Option(False, "--atlas", help="Re-pack textures into atlases, for rows that give none."),
+          show_progress: bool = typer.Option(True, "--progress/--no-progress", help="Show the progress bar.")
+          ) -> None:
+    """Build many heads: one task a person into OUT/<id>/, failures in OUT/report.jsonl; re-run to finish.
+
+    Exits with status 1 when some rows failed.
+    """
+    from rich.console import Console
+
+    from .animatable import clone_step
+    from .batch import run_batch
+
+    try:
+        report = run_batch(manifest, out, workers=workers, scheduler=scheduler, ipd_mm=ipd, focal_px=focal,
+                           method=method, texture_size=texture_size, atlas=atlas, clone_step=clone_step,
+                           progress=show_progress)
+    except KeyboardInterrupt:
+        _say(f"interrupted; the finished heads are in {out}, run the same command again to build the rest")
+        raise typer.Exit(130)
+    console = Console(stderr=True)
+    console.print(report.table())
+    console.print(report.summary(), soft_wrap=True)
+    if report.failed:
+        raise typer.Exit(1)
+
+
+@app.command()
+def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG), or a head mesh (.glb, .gltf, .obj, "
+                                                    ".ply) for the 3D mode."),
+             side: Path = typer.Argument(None, help="Side (profile) photo (none in the 3D mode)."),
              fdp: Path = typer.Option(None, "--fdp", help="Annotation file (*.fdp.json): read if it exists, "
                                                           "saved as you work [default: FRONT.fdp.json beside it]."),
              browser: bool = typer.Option(True, "--browser/--no-browser", help="Open the page in the browser."),
@@ -77,10 +117,13 @@ def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
              ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm, for the 3D preview."),
              focal: float = typer.Option(None, "--focal", help="Focal length in pixels, for the 3D preview; "
                                                                "orthographic cameras if omitted."),
+             unit: str = typer.Option(None, help="3D mode: the mesh's unit (m, cm, mm, in) [default: from its size]."),
+             up: str = typer.Option(None, help="3D mode: the mesh's up axis (+y, +z, ...) [default: detected]."),
+             forward: str = typer.Option(None, help="3D mode: the axis the face looks along [default: detected]."),
              detect: bool = typer.Option(True, "--detect/--no-detect",
-                                         help="Pre-place the points automatically (recon.landmarks); without, "
-                                              "from the generic head.")) -> None:
-    """Place and correct the feature points on the two photos in a local web page."""
+                                         help="Pre-place the points automatically (recon.landmarks; fmc mark on a "
+                                              "mesh); without, from the generic head.")) -> None:
+    """Place and correct the feature points on the two photos, or on a head mesh, in a local web page."""
     from .annotate import annotate as run_annotate
 
     def ready(url: str) -> None:
@@ -88,7 +131,7 @@ def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
         _say("serving on 127.0.0.1 only; press Ctrl-C to stop")
 
     path = run_annotate(front, side, fdp, open_browser=browser, port=port, detect=detect, ipd_mm=ipd, focal_px=focal,
-                        ready=ready)
+                        ready=ready, unit=unit, up=up, forward=forward)
     typer.echo(f"fdp: {path}")
 
 

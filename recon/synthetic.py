@@ -32,7 +32,8 @@ from .bake import fill_empty, interpolate, rasterize_uv
 from .materials import eye_texture
 
 __all__ = ["default_ict_path", "load_ict", "identity_vertices", "identity_head", "Person", "make_person",
-           "photograph", "PhotoPair", "synthetic_pair", "view_camera", "visible_points"]
+           "photograph", "PhotoPair", "synthetic_pair", "view_camera", "visible_points", "perfect_detector",
+           "CONVENTIONS", "MeshFile", "remeshed_identity"]
 
 #: ICT parts that make up the generic head's skin, and their UV tiles.
 _SKIN_PARTS = ("Face", "Head and Neck", "Mouth socket", "Eye socket left", "Eye socket right")
@@ -470,3 +471,146 @@ def synthetic_pair(seed: int, size: tuple[int, int] = (1024, 1280), focal_mm: fl
                                          points={i: p for i, p in zip(ids, px)})
         photos[view], masks[view], cams[view] = img, mask, cam
     return PhotoPair(person, photos["front"], photos["side"], masks, cams, fdp)
+
+
+def perfect_detector(points: dict[str, np.ndarray], name: str = "perfect 2D detector"):
+    """A stand-in for a 2D landmark detector on renders of a mesh whose true points are known.
+
+    Parameters
+    ----------
+    points : dict of str to (3,) float
+        The mesh's true feature points in the mesh file's own coordinates.
+    name : str
+
+    Returns
+    -------
+    callable
+        ``detect(views) -> FdpFile`` for :func:`recon.mark3d.mark`: each point the
+        catalogue says a front or a left-side photo shows, at the pixel where the renders'
+        cameras see it (confidence 1). It reports what a perfect detector would, so that
+        everything after detection can be measured on its own.
+    """
+    from mpeg4.catalogue import FEATURE_POINTS as FPS
+
+    ids = list(points)
+    file_pts = np.array([points[i] for i in ids], dtype=np.float64).reshape(-1, 3)
+
+    def detect(views) -> FdpFile:
+        m = views.frame
+        world = file_pts @ m[:3, :3].T + m[:3, 3]
+        fdp = FdpFile()
+        for view in ("front", "side"):
+            cam = views.cameras[view]
+            px = cam.project(world)
+            shown = (lambda fp: fp.front != "N") if view == "front" else \
+                (lambda fp: fp.side_view != "N" and fp.side in ("C", "L"))
+            keep = [k for k, i in enumerate(ids) if shown(FPS[i])
+                    and -0.5 <= px[k, 0] <= cam.width - 0.5 and -0.5 <= px[k, 1] <= cam.height - 0.5]
+            fdp.views[view] = ViewAnnotation(width=cam.width, height=cam.height,
+                                             points={ids[k]: px[k] for k in keep},
+                                             confidence={ids[k]: 1.0 for k in keep})
+        return fdp
+
+    detect.__name__ = name
+    return detect
+
+
+#: Axis conventions of mesh files in the wild: (up, forward) in the file's axes.
+CONVENTIONS = (("+y", "+z"), ("+z", "-y"), ("+z", "+y"), ("+y", "-z"))
+
+
+@dataclass
+class MeshFile:
+    """A re-meshed ICT identity written as a mesh from elsewhere, with the truth about it.
+
+    Attributes
+    ----------
+    path : Path
+    points : dict of str to (3,) float64
+        True feature points (on the identity's original surface) in the file's coordinates.
+    to_file : (4, 4) float64
+        The similarity taking the identity's neutral frame (metres) to the file's coordinates.
+    unit, up, forward : str
+    tilt_deg : float
+        Rotation applied on top of the axis convention, degrees.
+    faces : int
+        Triangles in the file (all parts).
+    """
+
+    path: Path
+    points: dict
+    to_file: np.ndarray
+    unit: str
+    up: str
+    forward: str
+    tilt_deg: float
+    faces: int
+
+
+def remeshed_identity(seed: int, folder, data: dict | None = None, fmt: str | None = None,
+                      max_tilt_deg: float = 10.0, generic: Head | None = None) -> MeshFile:
+    """An ICT identity as a user's head mesh would come: coarser and re-meshed, tilted, in
+    another unit and axis convention, parts unnamed or merged.
+
+    Each part is decimated by quadric edge collapse (fast-simplification, as trimesh calls
+    it) to a random 25–55 % of its triangles, so that no vertex id or position of the
+    original survives; then rotated by up to ``max_tilt_deg`` about a random axis, turned
+    to a random convention of :data:`CONVENTIONS`, scaled to a random unit (m, cm, mm) and
+    moved. ``fmt``: ``"ply"`` (all parts merged into one mesh), ``"obj"`` (one group per
+    part, named ``mesh0``..., shuffled) or ``"glb"`` (likewise); by the seed when None.
+    """
+    import trimesh
+
+    from mpeg4.catalogue import FEATURE_POINTS as FPS
+
+    data = load_ict() if data is None else data
+    head = identity_head(data, seed, generic)
+    rng = np.random.default_rng(50_000 + seed)
+    fmt = fmt or ("ply", "obj", "glb")[seed % 3]
+    meshes = []
+    for name, part in head.parts.items():
+        ratio = rng.uniform(0.25, 0.55)
+        m = trimesh.Trimesh(part.vertices, part.triangles, process=False)
+        d = m.simplify_quadric_decimation(percent=1 - ratio, aggression=int(rng.integers(3, 8)))
+        perm = rng.permutation(len(d.vertices))  # vertex order unrelated to the original's
+        inv = np.argsort(perm)
+        meshes.append(trimesh.Trimesh(d.vertices[perm], inv[d.faces], process=False))
+    axis = rng.normal(size=3)
+    tilt = float(rng.uniform(0, max_tilt_deg))
+    from scipy.spatial.transform import Rotation
+
+    r_tilt = Rotation.from_rotvec(np.radians(tilt) * axis / np.linalg.norm(axis)).as_matrix()
+    up, forward = CONVENTIONS[int(rng.integers(len(CONVENTIONS)))]
+    u = np.array({"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1),
+                  "-z": (0, 0, -1)}[up], float)
+    f = np.array({"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1),
+                  "-z": (0, 0, -1)}[forward], float)
+    conv = np.stack([np.cross(u, f), u, f]).T  # neutral (left, up, forward) -> file axes
+    unit = ("m", "cm", "mm")[int(rng.integers(3))]
+    scale = {"m": 1.0, "cm": 100.0, "mm": 1000.0}[unit]
+    m = np.eye(4)
+    m[:3, :3] = scale * conv @ r_tilt
+    m[:3, 3] = rng.normal(0, 0.2, 3) * scale
+    for mesh in meshes:
+        mesh.vertices = mesh.vertices @ m[:3, :3].T + m[:3, 3]
+    truth = {i: p @ m[:3, :3].T + m[:3, 3] for i, p in head.fp_positions().items() if i in FPS}
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"identity_{seed}.{fmt}"
+    order = rng.permutation(len(meshes))
+    if fmt == "ply":
+        trimesh.util.concatenate([meshes[k] for k in order]).export(path)
+    elif fmt == "obj":
+        lines, offset = [], 0
+        for j, k in enumerate(order):
+            lines.append(f"o mesh{j}")
+            lines += [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in meshes[k].vertices]
+            lines += [f"f {a} {b} {c}" for a, b, c in meshes[k].faces + offset + 1]
+            offset += len(meshes[k].vertices)
+        path.write_text("\n".join(lines) + "\n")
+    else:
+        scene = trimesh.Scene()
+        for j, k in enumerate(order):
+            scene.add_geometry(meshes[k], geom_name=f"mesh{j}", node_name=f"mesh{j}")
+        path.write_bytes(scene.export(file_type="glb"))
+    return MeshFile(path, truth, m, unit, up, forward, tilt, int(sum(len(x.faces) for x in meshes)))

@@ -1,4 +1,4 @@
-"""Shared fixtures: the Khronos glTF validator, the ICT FaceKit test data."""
+"""Shared fixtures: the Khronos glTF validator, the ICT FaceKit test data, the notebooks' report."""
 
 import json
 import shutil
@@ -33,3 +33,38 @@ def ict_npz():
     if not ICT_NPZ.exists():
         pytest.skip(f"ICT FaceKit test data not found at {ICT_NPZ}")
     return ICT_NPZ
+
+
+@pytest.fixture(scope="session")
+def remeshed(ict_npz, tmp_path_factory):
+    """A function (seed, fmt) -> recon.synthetic.MeshFile, each made once per test run."""
+    pytest.importorskip("fast_simplification", reason="fast-simplification is not installed (pip install '.[test]')")
+    from recon.synthetic import load_ict, remeshed_identity
+
+    cache = {}
+
+    def get(seed, fmt):
+        if (seed, fmt) not in cache:
+            cache[seed, fmt] = remeshed_identity(seed, tmp_path_factory.mktemp(f"remeshed{seed}"), load_ict(ict_npz),
+                                                 fmt=fmt)
+        return cache[seed, fmt]
+
+    return get
+
+
+_NOTEBOOK_LINES = pytest.StashKey[list]()
+
+
+@pytest.fixture
+def notebook_report(request):
+    """A list to append lines to; they are printed in a "notebooks" section at the end of
+    the run, so the log shows every notebook that was executed and how long it took."""
+    return request.config.stash.setdefault(_NOTEBOOK_LINES, [])
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    lines = config.stash.get(_NOTEBOOK_LINES, [])
+    if lines:
+        terminalreporter.section("notebooks")
+        for line in lines:
+            terminalreporter.write_line(line)

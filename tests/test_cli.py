@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()
 
 
-@pytest.mark.parametrize("app, commands", [(recon_app, ["example", "fit", "annotate", "preview"]),
+@pytest.mark.parametrize("app, commands", [(recon_app, ["example", "fit", "build", "batch", "annotate", "preview"]),
                                            (fmc_app, ["info", "convert", "author", "play", "say", "animate", "clone", "fap-info"])])
 def test_help_describes_every_command(app, commands):
     out = runner.invoke(app, ["--help"])

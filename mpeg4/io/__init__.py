@@ -4,6 +4,7 @@
   FAPU, Facial Animation Tables);
 - :mod:`mpeg4.io.obj`: OBJ + MTL + PNG heads, with the feature points in a ``.fdp.json``
   beside them;
+- :mod:`mpeg4.io.ply`: PLY meshes (one part), their feature points in a ``.fdp.json`` beside them;
 - :mod:`mpeg4.io.fdp_json`: ``*.fdp.json`` annotations and 3D feature points;
 - :mod:`mpeg4.io.fap`: MPEG-4 ``.fap`` animation streams;
 - :mod:`mpeg4.io.atomic`: every writer replaces files atomically.
@@ -26,7 +27,7 @@ __all__ = ["atomic_write", "load_head", "save_head", "HEAD_FORMATS", "read_glb",
 
 #: Extensions → (reader, writer) names; None where the format cannot be written.
 HEAD_FORMATS = {".glb": ("gltf.read_glb", "gltf.write_glb"), ".gltf": ("gltf.read_glb", None),
-                ".obj": ("obj.read_obj", "obj.write_obj")}
+                ".obj": ("obj.read_obj", "obj.write_obj"), ".ply": ("ply.read_ply", None)}
 
 _LAZY = {
     "read_glb": "gltf", "write_glb": "gltf", "read_obj": "obj", "write_obj": "obj",
@@ -58,10 +59,31 @@ def _format(path: str | os.PathLike, writing: bool) -> str:
     return ext
 
 
-def load_head(path: str | os.PathLike):
-    """Read a head from ``.glb``, ``.gltf`` or ``.obj`` (with its ``.fdp.json``)."""
+def load_head(path: str | os.PathLike, feature_points: bool = True):
+    """Read a head from ``.glb``, ``.gltf``, ``.obj`` or ``.ply``.
+
+    Parameters
+    ----------
+    path : path
+    feature_points : bool
+        Also read the feature points of a mesh that does not carry its own (an OBJ or PLY,
+        or a GLB from elsewhere) from ``<stem>.fdp.json`` beside it, when there is one; that
+        file may also bring the mesh into the neutral frame and name its parts
+        (:func:`mpeg4.io.fdp_json.place_mesh`). False: the mesh as the file has it.
+    """
     require_file(path, "head file")
-    return _function(HEAD_FORMATS[_format(path, False)][0])(path)
+    ext = _format(path, False)
+    if ext == ".obj":
+        return _function("obj.read_obj")(path, feature_points=feature_points)
+    head = _function(HEAD_FORMATS[ext][0])(path)
+    sidecar = Path(path).with_suffix(".fdp.json")
+    if feature_points and not head.feature_points and sidecar.is_file():
+        from .fdp_json import apply_fdp, read_fdp_json
+
+        fdp = read_fdp_json(sidecar)
+        head = apply_fdp(head, fdp, where=os.fspath(sidecar))
+        head.metadata = dict(head.metadata, **fdp.metadata)
+    return head
 
 
 def save_head(head, path: str | os.PathLike) -> str:

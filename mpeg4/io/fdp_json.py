@@ -34,7 +34,7 @@ from ..head import FeaturePointBinding, Head
 from .atomic import atomic_write
 
 __all__ = ["FORMAT", "VERSIONS", "ViewAnnotation", "FdpFile", "read_fdp_json", "write_fdp_json", "parse_fdp",
-           "fdp_to_dict", "validate_fdp", "fdp_from_head", "apply_fdp", "schema"]
+           "fdp_to_dict", "validate_fdp", "fdp_from_head", "apply_fdp", "schema", "PartSource", "place_mesh"]
 
 FORMAT = "mpeg4-fdp"
 #: Versions this reader understands.
@@ -65,8 +65,33 @@ class ViewAnnotation:
 
 
 @dataclass
+class PartSource:
+    """Where one part of a head comes from in a mesh file whose parts are not the head's.
+
+    Attributes
+    ----------
+    source : str
+        The file's part (as :func:`mpeg4.io.load_head` names it).
+    vertices : (k,) int64 or None
+        The part's vertices among the source part's, ascending; None for all of them.
+        Whole connected pieces only: no triangle may join them to the rest.
+    centre : (3,) float64 or None
+        Rotation centre (eyes), metres, neutral frame.
+    """
+
+    source: str
+    vertices: np.ndarray | None = None
+    centre: np.ndarray | None = None
+
+
+@dataclass
 class FdpFile:
-    """The contents of a ``*.fdp.json`` file (see the module docstring)."""
+    """The contents of a ``*.fdp.json`` file (see the module docstring).
+
+    ``frame`` and ``parts`` describe a mesh from elsewhere (see :func:`place_mesh`): the
+    (4, 4) similarity from the file's coordinates to the neutral frame in metres, and head
+    part name → :class:`PartSource`.
+    """
 
     views: dict[str, ViewAnnotation] = field(default_factory=dict)
     points3d: dict[str, np.ndarray] = field(default_factory=dict)
@@ -75,6 +100,8 @@ class FdpFile:
     fapu: FAPU | None = None
     metadata: dict = field(default_factory=dict)
     version: int = 1
+    frame: np.ndarray | None = None
+    parts: dict[str, PartSource] = field(default_factory=dict)
 
 
 def schema() -> dict:
@@ -166,7 +193,21 @@ def validate_fdp(data, where: str = "fdp.json") -> None:
         if len(b["vertices"]) != len(b["weights"]) or abs(sum(b["weights"]) - 1) > 1e-6:
             raise InputError(f"{len(b['vertices'])} vertices with weights summing to {sum(b['weights']):.6g}",
                              where=f'{where}, bindings["{fp_id}"]', fix="give one weight per vertex, summing to 1")
+    if data.get("frame") is not None:
+        _check_frame(np.asarray(data["frame"], dtype=np.float64), f"{where}, frame")
     _check_sides(data, where)
+
+
+def _check_frame(m: np.ndarray, where: str) -> None:
+    """A similarity with positive scale and no mirroring, as a (4, 4) matrix."""
+    if not np.allclose(m[3], [0, 0, 0, 1]):
+        raise InputError(f"the last row is {m[3].tolist()}, expected [0, 0, 0, 1]", where=where,
+                         fix="give the 4x4 matrix row by row, the translation in the last column")
+    a = m[:3, :3]
+    s = np.cbrt(np.linalg.det(a))
+    if not s > 0 or not np.allclose(a @ a.T, s * s * np.eye(3), atol=1e-6 * max(s * s, 1e-30)):
+        raise InputError("the matrix is not a rotation times a positive scale (a similarity without mirroring)",
+                         where=where, fix="keep axes at right angles and right-handed, the same scale on each")
 
 
 def _check_id(fp_id: str, where: str) -> None:
@@ -256,7 +297,12 @@ def parse_fdp(data: dict, where: str = "fdp.json") -> FdpFile:
                                      points={i: np.asarray(p, dtype=np.float64) for i, p in v["points"].items()},
                                      confidence={i: float(c) for i, c in (v.get("confidence") or {}).items()})
     fapu = data.get("fapu")
+    parts = {name: PartSource(s["from"], None if "vertices" not in s else np.asarray(s["vertices"], dtype=np.int64),
+                              None if "centre" not in s else np.asarray(s["centre"], dtype=np.float64))
+             for name, s in (data.get("parts") or {}).items()}
     return FdpFile(
+        frame=None if data.get("frame") is None else np.asarray(data["frame"], dtype=np.float64),
+        parts=parts,
         views=views,
         points3d={i: np.asarray(p, dtype=np.float64) for i, p in (data.get("points3d") or {}).items()},
         bindings={i: FeaturePointBinding(b["part"], tuple(b["vertices"]), tuple(float(w) for w in b["weights"]))
@@ -309,6 +355,17 @@ def fdp_to_dict(fdp: FdpFile) -> dict:
         out["texcoords"] = {i: [_num(c) for c in fdp.texcoords[i]] for i in _ordered(fdp.texcoords)}
     if fdp.fapu is not None:
         out["fapu"] = {k: _num(v) for k, v in fdp.fapu.as_dict().items()}
+    if fdp.frame is not None:
+        out["frame"] = [[float(c) for c in row] for row in np.asarray(fdp.frame, dtype=np.float64)]
+    if fdp.parts:
+        out["parts"] = {}
+        for name, s in fdp.parts.items():
+            entry = {"from": s.source}
+            if s.vertices is not None:
+                entry["vertices"] = [int(k) for k in s.vertices]
+            if s.centre is not None:
+                entry["centre"] = [_num(c) for c in s.centre]
+            out["parts"][name] = entry
     if fdp.metadata:
         out["metadata"] = _plain(fdp.metadata)
     return out
@@ -352,13 +409,93 @@ def fdp_from_head(head: Head) -> FdpFile:
                    fapu=fapu, metadata=_plain(head.metadata))
 
 
+def place_mesh(head: Head, frame: np.ndarray | None = None, parts: dict[str, PartSource] | None = None,
+               where: str = "fdp.json") -> Head:
+    """A mesh from elsewhere as a head: parts regrouped and named, moved into the neutral frame.
+
+    Parameters
+    ----------
+    head : Head
+        As read from the file (its own units, axes and part names; no feature points).
+    frame : (4, 4) float, optional
+        Similarity from the file's coordinates to the neutral frame, metres.
+    parts : dict of str to PartSource, optional
+        Head part name → where it comes from. A part taken whole is renamed; a part taken
+        in pieces gives its listed vertices (in that order) and the triangles among them;
+        what no listed part takes stays under the file's name (a suffix added if a listed
+        part already has it). Listed parts come first, in the given order.
+
+    Returns
+    -------
+    Head
+        A new head without feature points, morph targets or animation tables.
+    """
+    from ..head import Part
+
+    parts = parts or {}
+    m = np.eye(4) if frame is None else np.asarray(frame, dtype=np.float64)
+    _check_frame(m, f"{where}, frame")
+
+    def moved(v):
+        return v @ m[:3, :3].T + m[:3, 3]
+
+    taken: dict[str, np.ndarray] = {}
+    out: dict[str, Part] = {}
+    for name, s in parts.items():
+        place = f"{where}, parts.{name}"
+        if s.source not in head.parts:
+            raise InputError(f"comes from part '{s.source}', which the mesh does not have", where=place,
+                             fix=f"the mesh's parts are {', '.join(sorted(head.parts))}; mark the mesh again")
+        src = head.parts[s.source]
+        mask = taken.setdefault(s.source, np.zeros(src.n_vertices, dtype=bool))
+        ids = np.arange(src.n_vertices) if s.vertices is None else np.asarray(s.vertices, dtype=np.int64)
+        if len(ids) and (ids.min() < 0 or ids.max() >= src.n_vertices or (np.diff(ids) <= 0).any()):
+            raise InputError(f"vertex ids must be ascending and below {src.n_vertices}", where=place,
+                             fix="the file belongs to another mesh; mark the mesh again")
+        if mask[ids].any():
+            raise InputError(f"shares vertices of '{s.source}' with another part", where=place,
+                             fix="give each vertex to one part")
+        mask[ids] = True
+        out[name] = _sub_part(src, name, ids, moved, s.centre, place)
+    for name, src in head.parts.items():
+        mask = taken.get(name)
+        if mask is not None and mask.all():
+            continue
+        ids = np.arange(src.n_vertices) if mask is None else np.flatnonzero(~mask)
+        new, k = name, 2
+        while new in out:
+            new, k = f"{name}_{k}", k + 1
+        centre = None if src.centre is None or mask is not None else moved(src.centre[None])[0]
+        out[new] = _sub_part(src, new, ids, moved, centre, f"{where}, part '{name}'")
+    return Head(out, metadata=dict(head.metadata))
+
+
+def _sub_part(src, name: str, ids: np.ndarray, moved, centre, where: str):
+    from ..head import Part
+
+    slot = np.full(src.n_vertices, -1, dtype=np.int64)
+    slot[ids] = np.arange(len(ids))
+    corner = slot[src.triangles]
+    inside = (corner >= 0).all(axis=1)
+    straddle = (corner >= 0).any(axis=1) & ~inside
+    if straddle.any():
+        raise InputError(f"{int(straddle.sum())} triangles join the listed vertices to the rest of '{src.name}'",
+                         where=where, fix="list whole connected pieces of the part")
+    return Part(name, moved(src.vertices[ids]), corner[inside], uv=None if src.uv is None else src.uv[ids],
+                texture=src.texture, colour=src.colour, centre=centre)
+
+
 def apply_fdp(head: Head, fdp: FdpFile, tol: float = 1e-4, where: str = "fdp.json") -> Head:
     """A copy of ``head`` whose feature points are the file's bindings.
 
-    Where the file also has 3D points, each bound point must land within ``tol`` metres of
-    it (the file belongs to this mesh).
+    A file with a ``frame`` or ``parts`` (a mesh from elsewhere, see :func:`place_mesh`)
+    first brings the mesh into the neutral frame and names its parts. Where the file also
+    has 3D points, each bound point must land within ``tol`` metres of it (the file
+    belongs to this mesh).
     """
     out = head.copy()
+    if fdp.frame is not None or fdp.parts:
+        out = place_mesh(out, fdp.frame, fdp.parts, where)
     for i, b in fdp.bindings.items():
         try:
             out._check_binding(i, b)

@@ -124,7 +124,7 @@ def _read_mtl(path: Path) -> dict[str, dict]:
     return out
 
 
-def read_obj(path: str | os.PathLike) -> Head:
+def read_obj(path: str | os.PathLike, feature_points: bool = True) -> Head:
     """Read an OBJ head (with its ``.mtl``, textures and ``.fdp.json`` when present).
 
     Files written by :func:`write_obj` come back exactly: parts in order, vertex order,
@@ -141,6 +141,8 @@ def read_obj(path: str | os.PathLike) -> Head:
     ----------
     path : str or os.PathLike
         The ``.obj`` file.
+    feature_points : bool
+        Read the sidecar ``.fdp.json`` when there is one (False: the mesh alone).
 
     Returns
     -------
@@ -225,7 +227,7 @@ def read_obj(path: str | os.PathLike) -> Head:
     parts = {}
     sidecar = path.with_suffix(".fdp.json")
     fdp = None
-    if sidecar.exists():
+    if feature_points and sidecar.exists():
         from .fdp_json import read_fdp_json
 
         fdp = read_fdp_json(sidecar)

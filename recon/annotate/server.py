@@ -24,6 +24,15 @@ POST     /api/complete       ``{"views": ..., "replace_guesses": false}``: missi
 POST     /api/fit            ``{"views": ...}``: fit the head; a summary of the fit
 GET      /api/head.glb       the last fitted head (``model/gltf-binary``)
 =======  ==================  ==========================================================
+
+In the 3D mode (``recon annotate MESH``, a :class:`~recon.annotate.mesh_session.MeshSession`)
+the views are ``{"mesh": {"points": {id: [x, y, z]}, "confidence": ...}}`` (metres, neutral
+frame), there are no photos, and:
+
+=======  ==================  ==========================================================
+GET      /api/mesh.glb       the mesh in the neutral frame (``model/gltf-binary``)
+PUT      /api/fdp            as above; each point is snapped to the surface and bound to it
+=======  ==================  ==========================================================
 """
 
 from __future__ import annotations
@@ -47,6 +56,7 @@ from starlette.staticfiles import StaticFiles
 
 from mpeg4.errors import InputError
 
+from .mesh_session import MeshSession, is_mesh
 from .session import AnnotationSession, SaveConflict
 
 __all__ = ["MAX_BODY", "TOKEN_HEADER", "HOSTS", "create_app", "annotate", "static_dir", "three_bundle"]
@@ -172,12 +182,13 @@ def _views_of(body, allowed=("views",)) -> object:
     return body["views"]
 
 
-def create_app(session: AnnotationSession, token: str, max_body: int = MAX_BODY) -> Starlette:
+def create_app(session: AnnotationSession | MeshSession, token: str, max_body: int = MAX_BODY) -> Starlette:
     """The tool's ASGI app for one session.
 
     Parameters
     ----------
-    session : AnnotationSession
+    session : AnnotationSession or MeshSession
+        Two photos, or a head mesh (the 3D mode).
     token : str
         The secret every ``/api`` call must carry in ``X-Annotate-Token``.
     max_body : int
@@ -233,18 +244,24 @@ def create_app(session: AnnotationSession, token: str, max_body: int = MAX_BODY)
     async def no_icon(request: Request):
         return Response(status_code=204)
 
-    routes = [
+    async def mesh(request: Request):
+        data = await run_in_threadpool(session.glb)
+        return Response(data, media_type="model/gltf-binary", headers={"Cache-Control": "no-store"})
+
+    common = [
         Route("/", page),
         Route("/favicon.ico", no_icon),
         Route("/api/state", state),
-        Route("/api/photo/{view}", photo),
         Route("/api/fdp", read_fdp, methods=["GET"]),
         Route("/api/fdp", write_fdp, methods=["PUT"]),
-        Route("/api/complete", complete, methods=["POST"]),
-        Route("/api/fit", fit, methods=["POST"]),
-        Route("/api/head.glb", head),
         Mount("/static", StaticFiles(directory=os.fspath(static)), name="static"),
     ]
+    if isinstance(session, MeshSession):
+        own = [Route("/api/mesh.glb", mesh)]
+    else:
+        own = [Route("/api/photo/{view}", photo), Route("/api/complete", complete, methods=["POST"]),
+               Route("/api/fit", fit, methods=["POST"]), Route("/api/head.glb", head)]
+    routes = common[:-1] + own + common[-1:]
     middleware = [Middleware(TrustedHostMiddleware, allowed_hosts=list(HOSTS)),
                   Middleware(_Guard, token=token, max_body=max_body)]
     handlers = {
@@ -256,18 +273,20 @@ def create_app(session: AnnotationSession, token: str, max_body: int = MAX_BODY)
     return Starlette(routes=routes, middleware=middleware, exception_handlers=handlers)
 
 
-def annotate(front, side, fdp=None, open_browser: bool = True, port: int = 0, detect=True,
+def annotate(front, side=None, fdp=None, open_browser: bool = True, port: int = 0, detect=True,
              ipd_mm: float | None = None, focal_px: float | None = None,
-             ready: Callable[[str], None] | None = None) -> os.PathLike:
-    """``recon annotate``: serve the annotation page for two photos until interrupted.
+             ready: Callable[[str], None] | None = None, unit: str | None = None, up: str | None = None,
+             forward: str | None = None) -> os.PathLike:
+    """``recon annotate``: serve the annotation page for two photos, or a head mesh, until interrupted.
 
     Parameters
     ----------
     front, side : path
-        The photos.
+        The photos; or ``front`` a head mesh (GLB, glTF, OBJ, PLY) and ``side`` None for
+        the 3D mode.
     fdp : path, optional
-        The annotation file: read when it exists, written on save (beside the front photo,
-        named after it, when None).
+        The annotation file: read when it exists, written on save (beside the front photo
+        or the mesh, named after it, when None).
     open_browser : bool
         Open the page in the default browser.
     port : int
@@ -276,6 +295,8 @@ def annotate(front, side, fdp=None, open_browser: bool = True, port: int = 0, de
         Automatic placement (see :func:`recon.annotate.placement.initial_annotation`).
     ipd_mm, focal_px : float, optional
         For the 3D preview's fit, as ``recon fit`` takes them.
+    unit, up, forward : str, optional
+        The mesh's unit and axes (3D mode; see :func:`recon.mark3d.estimate_frame`).
     ready : callable, optional
         Called with the page's URL (which carries the token) once the server listens.
 
@@ -286,7 +307,13 @@ def annotate(front, side, fdp=None, open_browser: bool = True, port: int = 0, de
     """
     import uvicorn
 
-    session = AnnotationSession(front, side, fdp, detect=detect, ipd_mm=ipd_mm, focal_px=focal_px)
+    if side is None:
+        if not is_mesh(front):
+            raise InputError("one file given, and it is not a head mesh", where=os.fspath(front),
+                             fix="give a front and a side photo, or one mesh (.glb, .gltf, .obj, .ply)")
+        session = MeshSession(front, fdp, detect=detect, unit=unit, up=up, forward=forward)
+    else:
+        session = AnnotationSession(front, side, fdp, detect=detect, ipd_mm=ipd_mm, focal_px=focal_px)
     token = secrets.token_urlsafe(24)
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     try:

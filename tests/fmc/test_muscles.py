@@ -372,3 +372,23 @@ def test_cli_authors_with_either_method(tmp_path):
                                    str(tmp_path / "x.glb")])
     assert isinstance(bad.exception, InputError) and "--method shapes or --method muscles" in str(bad.exception)
     assert not (tmp_path / "x.glb").exists()
+
+
+def test_a_head_split_along_seams_gets_the_same_weights(rigged):
+    # A textured head stores the vertices of its seams twice; the flood fill and the jaw's
+    # fade must run across the copies as across the originals.
+    from mpeg4.seams import split_vertices
+
+    head, rig, _ = rigged
+    skin = head.skin
+    tri = skin.triangles.copy()
+    right = skin.vertices[tri].mean(axis=1)[:, 0] < 0
+    seam = np.intersect1d(np.unique(tri[right]), np.unique(tri[~right]))
+    copy_of = {v: skin.n_vertices + k for k, v in enumerate(seam)}
+    tri[right] = np.vectorize(lambda v: copy_of.get(v, v))(tri[right])
+    split = split_vertices(head, "skin", np.r_[np.arange(skin.n_vertices), seam], tri)
+    other = MuscleRig.from_head(split)
+    assert np.isfinite(other.jaw_weights).all()
+    n = skin.n_vertices
+    np.testing.assert_allclose(other.jaw_weights[:n], rig.jaw_weights, atol=1e-9)
+    np.testing.assert_allclose(other.jaw_weights[n:], rig.jaw_weights[seam], atol=1e-9)

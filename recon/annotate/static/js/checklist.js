@@ -8,7 +8,8 @@ export function pointsToCheck(app) {
     const points = app.store.views[view].points;
     for (const id of app.shownIn(view)) {
       const fp = app.catalogue[id];
-      const optional = (view === "front" ? fp.front : fp.side_view) === "~";
+      const optional = view === "mesh" ? fp.front !== "Y" && fp.side_view !== "Y" && fp.side_view !== "P"
+        : (view === "front" ? fp.front : fp.side_view) === "~";
       if (!(id in points)) {
         items.push({ view, id, kind: "missing", optional, confidence: -1 });
         continue;

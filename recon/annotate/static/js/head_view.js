@@ -5,7 +5,7 @@
 
 let THREE = null;
 
-async function three() {
+export async function three() {
   THREE ??= await import("../vendor/three.bundle.js");
   return THREE;
 }

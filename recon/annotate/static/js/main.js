@@ -1,37 +1,24 @@
-// The annotation page: two photo views, the list of points to check, the 3D preview, and
-// the glue between them (dragging with guides, mirrored placement, saving, shortcuts).
+// The annotation page: the photo mode's two photo views, the 3D preview, and the glue
+// between them (dragging with guides, mirrored placement, shortcuts); what both modes share
+// is in editor.js, the 3D mode (a head mesh) in mesh_app.js.
 
 import { Api } from "./api.js";
-import { Checklist } from "./checklist.js";
+import { $, Editor } from "./editor.js";
 import * as geo from "./geometry.js";
 import { HeadView, webglAvailable } from "./head_view.js";
+import { MeshApp } from "./mesh_app.js";
 import { PhotoView } from "./photo_view.js";
 import { bindShortcuts, helpTable } from "./shortcuts.js";
-import { Store, placePoint, removePoint } from "./store.js";
+import { placePoint } from "./store.js";
 
-const AUTOSAVE_MS = 1200;
 const REFIT_MS = 800;
-const $ = (id) => document.getElementById(id);
 
-class App {
+class App extends Editor {
   constructor(api, state) {
-    this.api = api;
-    this.state = state;
-    this.catalogue = Object.fromEntries(state.catalogue.map((fp) => [fp.id, fp]));
-    this.order = Object.fromEntries(state.catalogue.map((fp, k) => [fp.id, k]));
-    this.groups = Object.fromEntries(state.catalogue.map((fp) => [fp.id, fp.group]));
-    this.colours = state.colours;
-    this.lowConfidence = state.low_confidence;
-    this.viewNames = ["front", "side"];
+    super(api, state, ["front", "side"]);
+    this.mode = "photos";
     this.sizes = Object.fromEntries(this.viewNames.map((v) => [v, [state.photos[v].width, state.photos[v].height]]));
-    this.store = new Store(state.views);
     this.mirror = false;
-    this.placing = null;
-    this.drag = null;
-    this.savedVersion = 0;
-    this.saving = null;
-    this.saveAgain = false;
-    this.conflict = false;
     this.fitting = false;
     this.refitAgain = false;
     this.headView = null;
@@ -42,10 +29,6 @@ class App {
       box.querySelector(".view-title").textContent = `${v} · ${state.photos[v].name} (${this.sizes[v].join("×")})`;
       this.views[v] = new PhotoView(this, v, box.querySelector(".view-body"), this.sizes[v]);
     }
-    this.checklist = new Checklist(this, $("checklist"));
-
-    this.store.addEventListener("change", (e) => this._changed(e.detail));
-    this.store.addEventListener("select", () => this.render());
     this._wire();
     bindShortcuts(this);
     this._showInitialisation();
@@ -121,25 +104,13 @@ class App {
   }
 
   _showInitialisation() {
-    const init = this.state.initialisation;
-    const box = $("init-message");
-    box.dataset.source = init.source;
-    box.textContent = init.message;
-    for (const v of this.viewNames) {
-      const note = this.state.photos[v].note;
-      if (note) box.textContent += ` ${v} photo: ${note}.`;
-    }
+    super._showInitialisation(this.viewNames.map((v) => this.state.photos[v].note ? ` ${v} photo: ${this.state.photos[v].note}.` : "").join(""));
   }
 
   // --- edits -------------------------------------------------------------------------
   _changed(detail) {
-    this.render(detail.live);
+    super._changed(detail);
     if (detail.live) return;
-    this._showFileStatus();
-    if (this.store.version !== this.savedVersion && !this.conflict) {
-      clearTimeout(this.autosaveTimer);
-      this.autosaveTimer = setTimeout(() => this.save(), AUTOSAVE_MS);
-    }
     if (!$("preview3d").hidden && $("auto-refit").checked) {
       clearTimeout(this.refitTimer);
       this.refitTimer = setTimeout(() => this.fit3d(), REFIT_MS);
@@ -212,27 +183,6 @@ class App {
     this.store.select(view, id);
   }
 
-  step(direction) {
-    const item = this.checklist.next(direction);
-    if (item) this.goTo(item.view, item.id);
-  }
-
-  accept() {
-    const sel = this.store.selected;
-    if (!sel) return this.step(1);
-    const next = this.checklist.next(1);
-    if (this.store.confidence(sel.view, sel.id) !== null) {
-      this.store.commit(`check ${sel.id}`, (v) => { delete v[sel.view].confidence[sel.id]; });
-    }
-    if (next && !(next.view === sel.view && next.id === sel.id)) this.goTo(next.view, next.id);
-  }
-
-  removeSelected() {
-    const sel = this.store.selected;
-    if (!sel || !this.store.point(sel.view, sel.id)) return;
-    this.store.commit(`remove ${sel.id}`, (v) => removePoint(v, sel.view, sel.id));
-  }
-
   mirrorSelected() {
     const sel = this.store.selected;
     if (!sel || sel.view !== "front") return this.flash("Mirroring works on the front photo.");
@@ -252,18 +202,10 @@ class App {
     this.store.commit(`nudge ${sel.id}`, (v) => placePoint(v, sel.view, sel.id, q));
   }
 
-  undo() { const what = this.store.undo(); this.flash(what ? `Undone: ${what}` : "Nothing to undo."); }
-  redo() { const what = this.store.redo(); this.flash(what ? `Redone: ${what}` : "Nothing to redo."); }
-
   toggleMirror() {
     this.mirror = !this.mirror;
     $("btn-mirror").setAttribute("aria-pressed", this.mirror);
     this.render();
-  }
-
-  toggleLabels() {
-    const off = document.body.classList.toggle("no-labels");
-    $("btn-labels").setAttribute("aria-pressed", !off);
   }
 
   fitViews() { for (const v of Object.values(this.views)) v.fit(); }
@@ -273,13 +215,6 @@ class App {
     if (sel && this.store.point(sel.view, sel.id)) this.views[sel.view].zoomAround(this.store.point(sel.view, sel.id), factor);
     else for (const v of Object.values(this.views)) v.zoomAround(null, factor);
   }
-
-  cancel() {
-    this.placing = null;
-    this.store.select(null);
-  }
-
-  toggleHelp() { $("help").hidden = !$("help").hidden; }
 
   /** Missing points, and those still guessed, placed by the generic head fitted to the others. */
   async placeGuesses() {
@@ -291,94 +226,6 @@ class App {
       this.flash(n ? `Placed ${n} points from the generic head (${how}).` : "No point to place.");
     } catch (e) { this.error(e); }
   }
-
-  // --- the file ----------------------------------------------------------------------
-  async save(force = false) {
-    clearTimeout(this.autosaveTimer);
-    if (this.saving) { this.saveAgain = true; return this.saving; }
-    const version = this.store.version;
-    this._status("saving…", "busy");
-    this.saving = this.api.send("PUT", "/api/fdp", { views: this.store.toJSON(), force })
-      .then((r) => {
-        this.savedVersion = version;
-        this.conflict = false;
-        this.savedAt = new Date();
-        this._banner(null);
-        if (r.backup) this.flash(`Saved; the file as it was before is kept in ${r.backup.split("/").pop()}.`);
-      })
-      .catch((e) => {
-        if (e.status === 409) {
-          this.conflict = true;
-          this._banner(`${e.message}.`, [["Load it", () => this.load()], ["Overwrite it", () => this.save(true)]]);
-        } else {
-          this._banner(`Not saved: ${e.message}`);
-        }
-      })
-      .finally(() => {
-        this.saving = null;
-        this._showFileStatus();
-        if (this.saveAgain) {
-          this.saveAgain = false;
-          if (this.store.version !== this.savedVersion && !this.conflict) this.save();
-        }
-      });
-    return this.saving;
-  }
-
-  async load() {
-    try {
-      const r = await this.api.get("/api/fdp");
-      this.store.commit(`load ${this.state.file.name}`, (v) => { for (const name of this.viewNames) v[name] = r.views[name]; });
-      clearTimeout(this.autosaveTimer);
-      this.savedVersion = this.store.version;
-      this.conflict = false;
-      this.savedAt = new Date(r.saved_at * 1000);
-      this._banner(null);
-      this._showFileStatus();
-      this.flash(`Loaded ${this.state.file.name} from disk (undo brings back what was here).`);
-    } catch (e) { this.error(e); }
-  }
-
-  _showFileStatus() {
-    const name = this.state.file.name;
-    if (this.saving) return;
-    if (this.conflict) return this._status(`${name}: changed on disk`, "error");
-    if (this.store.version !== this.savedVersion) return this._status(`${name}: unsaved changes`, "dirty");
-    if (this.savedAt) return this._status(`${name}: saved ${this.savedAt.toLocaleTimeString()}`, "ok");
-    this._status(this.state.file.exists ? `${name}: as on disk` : `${name}: not saved yet`, "ok");
-  }
-
-  _status(text, kind) {
-    const s = $("file-status");
-    s.textContent = text;
-    s.dataset.kind = kind;
-  }
-
-  _banner(text, actions = []) {
-    const b = $("banner");
-    b.hidden = !text;
-    b.replaceChildren();
-    if (!text) return;
-    const span = document.createElement("span");
-    span.textContent = text;
-    b.appendChild(span);
-    for (const [label, run] of actions) {
-      const button = document.createElement("button");
-      button.textContent = label;
-      button.addEventListener("click", run);
-      b.appendChild(button);
-    }
-  }
-
-  flash(text) {
-    const f = $("flash");
-    f.textContent = text;
-    f.classList.add("shown");
-    clearTimeout(this.flashTimer);
-    this.flashTimer = setTimeout(() => f.classList.remove("shown"), 3000);
-  }
-
-  error(e) { this._banner(e.fix ? `${e.message}` : e.message); }
 
   // --- the 3D preview ----------------------------------------------------------------
   async fit3d() {
@@ -414,22 +261,18 @@ class App {
 
   // --- buttons -----------------------------------------------------------------------
   _wire() {
+    this._wireCommon();
     const on = (id, run) => $(id).addEventListener("click", run);
-    on("btn-undo", () => this.undo());
-    on("btn-redo", () => this.redo());
     on("btn-mirror", () => this.toggleMirror());
-    on("btn-labels", () => this.toggleLabels());
     on("btn-fill", () => this.placeGuesses());
-    on("btn-load", () => this.load());
-    on("btn-save", () => this.save());
     on("btn-fit", () => this.fit3d());
-    on("btn-help", () => this.toggleHelp());
     on("btn-close-3d", () => { $("preview3d").hidden = true; });
-    $("help").appendChild(helpTable());
-    $("help").addEventListener("click", () => { $("help").hidden = true; });
-    window.addEventListener("beforeunload", (e) => {
-      if (this.saving || this.store.version !== this.savedVersion) e.preventDefault();
-    });
+    $("help").appendChild(helpTable(this.mode));
+  }
+
+  async start() {
+    await this.loadPhotos();
+    this.fitViews();
   }
 
   async loadPhotos() {
@@ -453,11 +296,11 @@ async function main() {
     $("init-message").textContent = `The annotation server did not answer: ${e.message}. Is recon annotate still running?`;
     return;
   }
-  const app = new App(api, state);
+  document.body.dataset.mode = state.mode ?? "photos";
+  const app = state.mode === "mesh" ? new MeshApp(api, state) : new App(api, state);
   window.annotate = app; // for the browser tests and the console
   document.body.dataset.points = "shown";
-  await app.loadPhotos();
-  app.fitViews();
+  await app.start();
   document.body.dataset.ready = "true";
 }
 

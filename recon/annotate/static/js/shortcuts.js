@@ -1,4 +1,5 @@
-// Keyboard shortcuts: one table, used both to handle keys and to write the help.
+// Keyboard shortcuts: one table, used both to handle keys and to write the help. Entries
+// marked `photos` belong to the photo mode only; the 3D mode (a mesh) has the others.
 
 export const SHORTCUTS = [
   { keys: ["Ctrl+Z"], what: "undo", run: (app) => app.undo() },
@@ -8,20 +9,20 @@ export const SHORTCUTS = [
   { keys: ["Shift+N", "Shift+Tab"], what: "previous point to check", run: (app) => app.step(-1) },
   { keys: ["Enter"], what: "the selected point is right: mark it checked and go to the next", run: (app) => app.accept() },
   { keys: ["Delete", "Backspace"], what: "remove the selected point", run: (app) => app.removeSelected() },
-  { keys: ["M"], what: "mirror mode: dragging a left/right point on the front photo moves its partner to the mirror position",
+  { photos: true, keys: ["M"], what: "mirror mode: dragging a left/right point on the front photo moves its partner to the mirror position",
     run: (app) => app.toggleMirror() },
-  { keys: ["Shift+M"], what: "put the selected point's partner at its mirror position", run: (app) => app.mirrorSelected() },
-  { keys: ["ArrowLeft", "ArrowRight", "ArrowUp", "ArrowDown"], what: "nudge the selected point by a pixel (with Shift: ten)",
+  { photos: true, keys: ["Shift+M"], what: "put the selected point's partner at its mirror position", run: (app) => app.mirrorSelected() },
+  { photos: true, keys: ["ArrowLeft", "ArrowRight", "ArrowUp", "ArrowDown"], what: "nudge the selected point by a pixel (with Shift: ten)",
     run: (app, e) => app.nudge(e.key, e.shiftKey ? 10 : 1) },
-  { keys: ["Shift+ArrowLeft", "Shift+ArrowRight", "Shift+ArrowUp", "Shift+ArrowDown"], hidden: true,
+  { photos: true, keys: ["Shift+ArrowLeft", "Shift+ArrowRight", "Shift+ArrowUp", "Shift+ArrowDown"], hidden: true,
     run: (app, e) => app.nudge(e.key, 10) },
-  { keys: ["F", "0"], what: "fit both photos in their views", run: (app) => app.fitViews() },
-  { keys: ["+", "="], what: "zoom in (around the selected point)", run: (app) => app.zoom(1.5) },
-  { keys: ["-"], what: "zoom out", run: (app) => app.zoom(1 / 1.5) },
+  { keys: ["F", "0"], what: "fit both photos in their views (the mesh: back to the front view)", run: (app) => app.fitViews() },
+  { photos: true, keys: ["+", "="], what: "zoom in (around the selected point)", run: (app) => app.zoom(1.5) },
+  { photos: true, keys: ["-"], what: "zoom out", run: (app) => app.zoom(1 / 1.5) },
   { keys: ["L"], what: "labels on or off", run: (app) => app.toggleLabels() },
-  { keys: ["G"], what: "place the missing points, and move those still guessed, by the generic head fitted to the points you placed",
+  { photos: true, keys: ["G"], what: "place the missing points, and move those still guessed, by the generic head fitted to the points you placed",
     run: (app) => app.placeGuesses() },
-  { keys: ["P"], what: "fit the head and show it in 3D", run: (app) => app.fit3d() },
+  { photos: true, keys: ["P"], what: "fit the head and show it in 3D", run: (app) => app.fit3d() },
   { keys: ["Escape"], what: "stop placing a point; clear the selection", run: (app) => app.cancel() },
   { keys: ["?"], what: "this help", run: (app) => app.toggleHelp() },
 ];
@@ -39,9 +40,11 @@ export function keyName(e) {
   return parts.join("+");
 }
 
+const inMode = (s, mode) => !s.photos || mode === "photos";
+
 export function bindShortcuts(app) {
   const table = new Map();
-  for (const s of SHORTCUTS) for (const k of s.keys) table.set(k, s);
+  for (const s of SHORTCUTS) if (inMode(s, app.mode)) for (const k of s.keys) table.set(k, s);
   window.addEventListener("keydown", (e) => {
     if (e.target.closest?.("input, textarea, select")) return;
     const s = table.get(keyName(e));
@@ -51,8 +54,8 @@ export function bindShortcuts(app) {
   });
 }
 
-export function helpTable() {
-  const rows = SHORTCUTS.filter((s) => !s.hidden).map((s) => {
+export function helpTable(mode = "photos") {
+  const rows = SHORTCUTS.filter((s) => !s.hidden && inMode(s, mode)).map((s) => {
     const tr = document.createElement("tr");
     const keys = document.createElement("td");
     keys.innerHTML = s.keys.map(() => "<kbd></kbd>").join(" ");

@@ -1,6 +1,7 @@
 // The annotation being edited: points and confidences per view, the selection, and the
 // history of changes (undo/redo). Views are keyed by name ("front", "side"; a mesh view
-// can join later) and hold {points: {id: [x, y]}, confidence: {id: c}}.
+// "mesh" in the 3D mode) and hold {points: {id: [x, y]}, confidence: {id: c}}, points in
+// pixels, or [x, y, z] metres on the mesh.
 //
 // Events: "change" (detail {label, live}) after every edit, "select" when the selection moves.
 
@@ -10,7 +11,7 @@ const clone = (v) => JSON.parse(JSON.stringify(v));
 
 /** Put a point where the user placed it: a hand-placed point has no confidence. */
 export function placePoint(views, view, id, xy) {
-  views[view].points[id] = [xy[0], xy[1]];
+  views[view].points[id] = Array.from(xy);
   delete views[view].confidence[id];
 }
 

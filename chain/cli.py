@@ -1,0 +1,83 @@
+"""The ``fmc`` command: :mod:`fmc.cli`'s commands, ``fmc mark``, and ``fmc clone`` onto any mesh.
+
+Each command wraps one public function.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import typer
+
+from fmc.cli import app as fmc_app
+from mpeg4.errors import InputError
+from mpeg4.render import RendererUnavailable
+
+app = typer.Typer(help=fmc_app.info.help, no_args_is_help=True, add_completion=False,
+                  pretty_exceptions_enable=False)
+app.registered_commands += [c for c in fmc_app.registered_commands if c.name != "clone"]
+
+
+def _say(msg: str) -> None:
+    typer.echo(f"fmc: {msg}", err=True)
+
+
+@app.command()
+def mark(mesh: Path = typer.Argument(..., help="Head mesh (.glb, .gltf, .obj or .ply), in any unit and axes."),
+         out: Path = typer.Option(None, "-o", "--out", help="Feature point file to write "
+                                                            "[default: MESH.fdp.json beside the mesh]."),
+         unit: str = typer.Option(None, help="The mesh's unit: m, cm, mm or in [default: from its size]."),
+         up: str = typer.Option(None, help="The mesh's up axis: +x, -x, +y, -y, +z or -z [default: detected]."),
+         forward: str = typer.Option(None, help="The axis the face looks along [default: detected]."),
+         passes: int = typer.Option(2, help="1: points from the first renders; 2: again in the frame they give.")
+         ) -> None:
+    """Find the MPEG-4 feature points of a head mesh (renders, 2D landmarks, ray casting): MESH.fdp.json."""
+    from recon.mark3d import mark_file
+
+    path, result = mark_file(mesh, out, unit=unit, up=up, forward=forward, passes=passes, progress=_say)
+    for note in result.notes:
+        _say(note)
+    for w in result.warnings:
+        _say(f"warning: {w}")
+    low = sorted(i for i, c in result.confidence.items() if c < 0.5)
+    _say(f"{len(result.hits)} points; {len(low)} to check" + (f" ({', '.join(low[:10])}"
+                                                                f"{' ...' if len(low) > 10 else ''})" if low else "")
+         + f": recon annotate {mesh}")
+    typer.echo(path)
+
+
+@app.command("clone")
+def clone_cmd(source: Path = typer.Option(..., "--source", help="Head with motion: morph targets and/or FATs (.glb)."),
+              target: Path = typer.Option(..., "--target", help="Head to clone onto: with feature points (a GLB of "
+                                                                "this project, or a mesh with its MESH.fdp.json), or "
+                                                                "any head mesh, marked first (fmc mark)."),
+              out: Path = typer.Option(..., "-o", "--out", help="Target with the cloned motion (.glb)."),
+              antialias: float = typer.Option(
+                  None, help="Radius of the anti-aliasing disc in the alignment space (0: none; default: 0.02 when "
+                             "the target is sparser than the source)."),
+              triangulation: str = typer.Option("mpeg4", help="Feature-point triangulation: mpeg4 (shipped) or "
+                                                              "delaunay.")) -> None:
+    """Clone morph targets and Facial Animation Tables from one head onto another (Pandzic's
+    Facial Motion Cloning; see the README for the measured accuracy). A target without feature
+    points is marked first (fmc mark), with a warning that its points are unreviewed."""
+    from mpeg4.io import save_head
+
+    from .clone import clone_onto
+
+    head, warnings = clone_onto(source, target, progress=_say, antialias=antialias, triangulation=triangulation)
+    for w in warnings:
+        _say(f"warning: {w}")
+    typer.echo(save_head(head, out))
+
+
+def main() -> None:
+    """Console entry point: user-input errors print as one line, exit status 2."""
+    try:
+        app(prog_name="fmc")
+    except InputError as e:
+        typer.echo(f"fmc: error: {e}", err=True)
+        sys.exit(2)
+    except RendererUnavailable as e:  # a machine without EGL: say what to install
+        typer.echo(f"fmc: error: {e}", err=True)
+        sys.exit(3)

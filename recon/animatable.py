@@ -1,0 +1,61 @@
+"""A built head made animatable: a source head's motion cloned onto it.
+
+This is the thin layer where the photo side hands over to the motion side. ``recon`` never
+imports :mod:`fmc` at module level (data flows photos → head → clone, one way); the
+functions here import it when they are called, as :mod:`recon.example` does, so that
+:mod:`recon.batch` can stay free of :mod:`fmc` and receive :func:`clone_step` as a plain
+function (it pickles by reference, so it travels to local worker processes and to Dask
+workers alike).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+
+from mpeg4.head import Head
+
+__all__ = ["GENERIC_SOURCE", "clone_step", "load_source"]
+
+#: The ``clone`` value naming the shipped generic head with its complete animation tables.
+GENERIC_SOURCE = "generic"
+
+
+@functools.lru_cache(maxsize=2)
+def load_source(source: str = GENERIC_SOURCE) -> Head:
+    """The head whose motion is cloned: ``"generic"`` for the generic head with its
+    Facial Animation Tables (:func:`mpeg4.generic_head.load_generic_head`), or a head file
+    (``.glb`` with animation tables or morph targets).
+
+    Kept per process (at most two sources), so a long batch reads each source once and a
+    worker's memory does not grow with the number of heads.
+    """
+    if source == GENERIC_SOURCE:
+        from mpeg4.generic_head import load_generic_head
+
+        return load_generic_head(with_fat=True)
+    from mpeg4.io import load_head
+
+    return load_head(source)
+
+
+def clone_step(head: Head, source: str | os.PathLike = GENERIC_SOURCE) -> tuple[Head, list[str]]:
+    """``head`` with the motion of ``source`` cloned onto it (:func:`fmc.clone.clone`).
+
+    Parameters
+    ----------
+    head : Head
+        A head with feature points (a ``recon build`` result).
+    source : str or path
+        ``"generic"`` or a head file; see :func:`load_source`.
+
+    Returns
+    -------
+    head : Head
+        The animatable head (morph targets and Facial Animation Tables).
+    warnings : list of str
+        What the cloning could not carry over.
+    """
+    from fmc.clone import clone
+
+    return clone(load_source(os.fspath(source)), head)

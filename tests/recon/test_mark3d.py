@@ -1,0 +1,200 @@
+"""recon.mark3d: feature points on re-meshed ICT identities, the fdp.json round trip, bad input.
+
+The 2D detector here is :func:`recon.synthetic.perfect_detector` (the true points seen by
+the renders' cameras), so these tests measure everything after detection: the frame, the
+ray casting, the separate meshes, the hidden points and the file.
+"""
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+from typer.testing import CliRunner
+
+from mpeg4.errors import InputError
+from mpeg4.io import load_head, read_fdp_json
+from mpeg4.io.fdp_json import PartSource, place_mesh
+from mpeg4.head import Head, Part
+
+pytest.importorskip("fast_simplification", reason="fast-simplification is not installed (pip install '.[test]')")
+
+from recon.mark3d import check_mesh, estimate_frame, mark, mark_file  # noqa: E402
+from recon.synthetic import perfect_detector  # noqa: E402
+
+LANDMARK_GROUPS = (2, 3, 4, 8, 9)
+
+
+@pytest.fixture(scope="module")
+def meshes(remeshed):
+    return {"ply": remeshed(3, "ply"), "obj": remeshed(7, "obj")}
+
+
+@pytest.fixture(scope="module")
+def marked(meshes, tmp_path_factory):
+    """fmc mark on a copy of each mesh: the fdp.json beside it, where load_head finds it."""
+    out = {}
+    for fmt, mf in meshes.items():
+        mesh = tmp_path_factory.mktemp(f"marked_{fmt}") / mf.path.name
+        mesh.write_bytes(mf.path.read_bytes())
+        out[fmt] = (mf, mesh, *mark_file(mesh, detect=perfect_detector(mf.points)))
+    return out
+
+
+def _errors_mm(result, mf):
+    """3D error of each point against the truth, mm, in the identity's own metric."""
+    to_m = 1.0 / np.linalg.norm(mf.to_file[:3, 0])
+    return {i: float(np.linalg.norm(result.frame.inverse(h.point[None])[0] - mf.points[i]) * to_m * 1000)
+            for i, h in result.hits.items() if i in mf.points}
+
+
+@pytest.mark.parametrize("fmt", ["ply", "obj"])
+def test_points_on_a_remeshed_identity(marked, fmt):
+    mf, mesh, out, result = marked[fmt]
+    # The frame: unit and axes as the file was written.
+    assert (result.frame.unit, result.frame.up, result.frame.forward) == (mf.unit, mf.up, mf.forward), result.notes
+    err = _errors_mm(result, mf)
+    assert len(err) == 84
+    face = [e for i, e in err.items() if int(i.split(".")[0]) in LANDMARK_GROUPS]
+    assert np.median(face) < 0.5 and np.median(list(err.values())) < 0.5
+    assert np.mean(np.array(face) < 3.0) > 0.9 and np.mean(np.array(list(err.values())) < 3.0) > 0.8
+    # The separate meshes, found in a merged PLY and among anonymous OBJ groups alike.
+    assert {"skin", "eye_l", "eye_r", "teeth_upper", "teeth_lower", "tongue"} <= set(result.head.parts)
+    assert result.head.feature_points["3.5"].part == "eye_l" and result.head.feature_points["6.1"].part == "tongue"
+    centre = result.head.parts["eye_l"].centre
+    assert 0.005 < np.linalg.norm(result.head.fp_position("3.5") - centre) < 0.02  # behind the pupil
+    # The file: bindings to the mesh as written, 3D points in the neutral frame.
+    saved = read_fdp_json(out)
+    assert saved.metadata["mark3d"]["reviewed"] is False and set(saved.metadata["mark3d"]["confidence"]) == set(err)
+    assert np.allclose(saved.frame, result.frame.matrix)
+
+
+def test_the_file_brings_the_mesh_into_the_neutral_frame(marked):
+    mf, mesh, out, result = marked["obj"]
+    assert out == mesh.with_suffix(".fdp.json")
+    head = load_head(mesh)
+    assert head.metadata["mark3d"]["reviewed"] is False
+    for i, p in result.head.fp_positions().items():
+        assert np.allclose(head.fp_position(i), p, atol=1e-8)
+    assert 0.05 < head.fapu.ES0 < 0.08  # metres between the pupils
+    lo, hi = head.bounds
+    assert 0.15 < (hi - lo)[0] < 0.3  # metres, whatever the file's unit
+    assert head.fp_position("9.3")[2] > head.fp_position("11.6")[2] + 0.1  # the nose at +z
+    assert head.fp_position("11.4")[1] > head.fp_position("2.1")[1] + 0.15  # the skull up
+    # Marking again keeps the first file as a backup.
+    first = out.read_bytes()
+    mark_file(mesh, detect=perfect_detector(mf.points), passes=1)
+    assert out.with_name(out.name + ".bak").read_bytes() == first
+    assert json.loads(out.read_text())["metadata"]["mark3d"]["detector"] == "perfect 2D detector"
+
+
+def test_flags_override_detection_and_a_backwards_head_is_refused(meshes):
+    mf = meshes["ply"]
+    head = load_head(mf.path)
+    opposite = {"+": "-", "-": "+"}[mf.forward[0]] + mf.forward[1]
+    with pytest.raises(InputError, match="faces backwards") as e:
+        estimate_frame(head, forward=opposite, where=str(mf.path))
+    assert f"--forward {mf.forward}" in str(e.value) and str(mf.path) in str(e.value)
+    frame = estimate_frame(head, unit=mf.unit, up=mf.up, forward=mf.forward)
+    assert any("(given)" in n for n in frame.notes)
+    with pytest.raises(InputError, match="not at right angles"):
+        estimate_frame(head, up="+y", forward="-y")
+    with pytest.raises(InputError, match="unknown unit"):
+        estimate_frame(head, unit="furlong")
+
+
+def _mesh_file(tmp_path, mesh: trimesh.Trimesh, name: str):
+    path = tmp_path / name
+    mesh.export(path)
+    return path
+
+
+def test_a_cube_is_not_a_head(tmp_path):
+    path = _mesh_file(tmp_path, trimesh.creation.box((20, 20, 20)).subdivide().subdivide(), "cube.ply")
+    with pytest.raises(InputError, match="no face found") as e:
+        mark(path, detect=lambda views: pytest.fail("no detection for a cube"))
+    assert str(path) in str(e.value)
+
+
+def test_empty_soup_and_non_manifold_files(tmp_path):
+    empty = tmp_path / "empty.obj"
+    empty.write_text("# nothing\n")
+    with pytest.raises(InputError, match="no faces"):
+        mark(empty, detect=lambda v: None)
+    zero = tmp_path / "zero.ply"
+    zero.write_bytes(b"")
+    with pytest.raises(InputError, match="zero.ply"):
+        mark(zero, detect=lambda v: None)
+    sphere = trimesh.creation.icosphere(3)
+    soup = trimesh.Trimesh(sphere.triangles.reshape(-1, 3), np.arange(3 * len(sphere.faces)).reshape(-1, 3),
+                           process=False)
+    with pytest.raises(InputError, match="triangle soup"):
+        check_mesh(Head({"skin": Part("skin", soup.vertices, soup.faces)}), "soup.ply")
+    # Every face three times over: each edge shared by six triangles.
+    f = np.concatenate([sphere.faces] * 3)
+    with pytest.raises(InputError, match="non-manifold") as e:
+        check_mesh(Head({"skin": Part("skin", sphere.vertices, f)}), "triple.ply")
+    assert "Clean Up" in str(e.value)
+    one = np.concatenate([sphere.faces, sphere.faces[:1]])
+    assert check_mesh(Head({"skin": Part("skin", sphere.vertices, one)})) != []  # a warning, not an error
+
+
+def test_place_mesh_regroups_and_moves(tmp_path):
+    a = trimesh.creation.icosphere(1)
+    b = trimesh.creation.icosphere(1)
+    b.vertices += [3.0, 0, 0]
+    v = np.concatenate([a.vertices, b.vertices])
+    t = np.concatenate([a.faces, b.faces + len(a.vertices)])
+    head = Head({"Body": Part("Body", v, t), "Hair": Part("Hair", a.vertices, a.faces)})
+    m = np.eye(4)
+    m[:3, :3] = 0.01 * np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]])  # cm, z up -> m, y up
+    m[:3, 3] = [0.1, 0.2, 0.3]
+    ids = np.arange(len(a.vertices), len(v))
+    out = place_mesh(head, m, {"skin": PartSource("Body", np.arange(len(a.vertices))),
+                               "eye_l": PartSource("Body", ids, np.array([0.13, 0.2, 0.3]))})
+    assert list(out.parts) == ["skin", "eye_l", "Hair"]
+    assert np.allclose(out.parts["eye_l"].vertices, v[ids] @ m[:3, :3].T + m[:3, 3])
+    assert len(out.parts["eye_l"].triangles) == len(b.faces) and out.parts["eye_l"].centre[0] == 0.13
+    with pytest.raises(InputError, match="join the listed vertices"):
+        place_mesh(head, None, {"eye_l": PartSource("Body", ids[:-3])})
+    with pytest.raises(InputError, match="not a rotation"):
+        place_mesh(head, np.diag([1.0, 1.0, -1.0, 1.0]))
+    with pytest.raises(InputError, match="'Tail'"):
+        place_mesh(head, None, {"eye_l": PartSource("Tail")})
+
+
+def test_cli_errors(meshes, tmp_path):
+    from chain.cli import app
+
+    path = _mesh_file(tmp_path, trimesh.creation.box((0.2, 0.2, 0.2)).subdivide().subdivide(), "box.obj")
+    help_text = CliRunner().invoke(app, ["--help"]).output
+    assert all(c in help_text for c in ("mark", "clone", "author", "info"))
+    out = CliRunner().invoke(app, ["mark", str(path), "--up", "+q"])
+    assert isinstance(out.exception, InputError) and "unknown axis '+q' for --up" in str(out.exception)
+    if not _detector_available():
+        out = CliRunner().invoke(app, ["mark", str(meshes["ply"].path)])
+        assert "no 2D landmark detector" in str(out.exception) and "recon annotate" in str(out.exception)
+
+
+def _detector_available() -> bool:
+    from recon.mark3d import landmark_detector
+
+    try:
+        landmark_detector()
+    except InputError:
+        return False
+    return True
+
+
+@pytest.mark.slow
+def test_the_photo_detector_on_the_renders(meshes):
+    """The final code path: recon.landmarks.detect on the renders of an untextured mesh."""
+    if not _detector_available():
+        pytest.skip("recon.landmarks or mediapipe is not installed")
+    mf = meshes["ply"]
+    result = mark(mf.path)
+    assert result.fdp.metadata["mark3d"]["detector"] == "recon.landmarks.detect"
+    err = _errors_mm(result, mf)
+    eyes_nose_mouth = [err[i] for i in ("3.5", "3.6", "3.7", "3.12", "9.3", "8.3", "8.4", "2.2", "9.15") if i in err]
+    assert len(eyes_nose_mouth) == 9 and np.median(eyes_nose_mouth) < 4.0
+    assert (result.frame.unit, result.frame.up, result.frame.forward) == (mf.unit, mf.up, mf.forward)
