@@ -206,7 +206,11 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
         raise InputError("the heights of the points marked in both photos disagree: "
                          + ", ".join(f"{i} by {resid[i] * 1000:+.1f} mm" for i in top),
                          where="side view", fix=f"check those points (tolerance {height_tol_mm:g} mm); the two "
-                                                "photos must show the same neutral pose")
+                                                "photos must show the same neutral pose"
+                                                + ("; photos taken from nearer than a few metres need the lens's "
+                                                   "focal length (--focal, pixels): without it the heights of "
+                                                   "points far from the middle disagree by a few mm"
+                                                   if focal_px is None else ""))
 
     # Assemble: x from the front (0 on the midline), y from both, z from the side.
     pts: dict[str, list] = {}

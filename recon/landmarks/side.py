@@ -236,8 +236,8 @@ def _stretch(points: dict, ids, prof: np.ndarray, anchor_pred: np.ndarray, ancho
     return k
 
 
-def detect_side(image: np.ndarray, front: ViewPoints, front_height: int, where: str = "side photo",
-                layout: dict | None = None) -> tuple[ViewPoints, str]:
+def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
+                where: str = "side photo") -> tuple[ViewPoints, str]:
     """Feature points on a profile photo (see the module docstring).
 
     Parameters
@@ -250,8 +250,6 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int, where: 
         The front photo's height in pixels.
     where : str
         The photo's name, for messages.
-    layout : dict, optional
-        Unused (kept for callers of the earlier signature).
 
     Returns
     -------
