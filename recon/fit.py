@@ -123,6 +123,9 @@ def run_fit(front_photo, side_photo, fdp_path, out_dir, ipd_mm: float = DEFAULT_
     out_dir : path
         Output folder (created); ``head.glb``, ``head.fdp.json`` and ``preview.png`` are
         replaced atomically.
+    ipd_mm, focal_px, method
+        See :func:`fit_head`. Without ``focal_px``, the focal length the photos record in
+        their EXIF (:func:`recon.photos.photos_focal_px`), else orthographic cameras.
 
     Returns
     -------
@@ -137,6 +140,11 @@ def run_fit(front_photo, side_photo, fdp_path, out_dir, ipd_mm: float = DEFAULT_
     photos = {"front": front_photo, "side": side_photo}
     attach_photo_sizes(fdp, {n: image_size(p) for n, p in photos.items()}, os.fspath(fdp_path),
                        {n: os.fspath(p) for n, p in photos.items()})
+    if focal_px is None:
+        from .photos import photos_focal_px
+
+        focal_px, note = photos_focal_px(front_photo, side_photo)
+        say(note)
     say("fitting the generic head to the feature points")
     head, cal = fit_head(fdp, ipd_mm=ipd_mm, focal_px=focal_px, method=method, where=os.fspath(fdp_path))
     out = Path(out_dir)

@@ -136,7 +136,9 @@ class AnnotationSession:
     detect : callable or bool
         Passed to :func:`recon.annotate.placement.initial_annotation`.
     ipd_mm, focal_px : float, optional
-        For the 3D preview's fit (see :func:`recon.fit.fit_head`).
+        For the 3D preview's fit (see :func:`recon.fit.fit_head`); without ``focal_px``,
+        the focal length the photos record in their EXIF, if any (:attr:`camera_note`
+        says which).
     """
 
     def __init__(self, front, side, fdp_path=None, detect=True, ipd_mm: float | None = None,
@@ -159,6 +161,11 @@ class AnnotationSession:
         self._tmp = tempfile.TemporaryDirectory(prefix="recon-annotate-")
         self.glb: bytes | None = None
         self.fits = 0
+        self.camera_note = "focal length given"
+        if focal_px is None:
+            from recon.photos import photos_focal_px
+
+            focal_px, self.camera_note = photos_focal_px(front, side)
         self.fit_options = {"focal_px": focal_px} | ({} if ipd_mm is None else {"ipd_mm": ipd_mm})
 
     # --- what the page needs ------------------------------------------------------
