@@ -23,8 +23,13 @@ MIN_PHOTO_PX = 256
 #: Diagonal of a 35 mm film frame (36 × 24 mm), millimetres: what "35 mm equivalent"
 #: focal lengths are relative to.
 FILM_DIAGONAL_MM = 43.2666
-#: EXIF tags: the Exif sub-IFD, and the focal length in 35 mm film terms.
+#: EXIF tags: the Exif sub-IFD; the focal length in 35 mm film terms; the focal length
+#: (mm), the sensor's resolution and its unit, the recorded image width.
 _EXIF_IFD, _FOCAL_35MM = 0x8769, 0xA405
+_FOCAL_MM, _PLANE_X_RES, _PLANE_UNIT, _PIXEL_X = 0x920A, 0xA20E, 0xA210, 0xA002
+#: Millimetres per FocalPlaneResolutionUnit: inch (2), centimetre (3), and the
+#: millimetre (4) and micrometre (5) some cameras write.
+_UNIT_MM = {2: 25.4, 3: 10.0, 4: 1.0, 5: 1e-3}
 
 
 def _open(path: str | os.PathLike, kind: str):
@@ -65,29 +70,55 @@ def check_photo(image: np.ndarray, where: str, min_px: int = MIN_PHOTO_PX) -> No
 def exif_focal_px(path: str | os.PathLike, kind: str = "photo") -> tuple[float, float] | None:
     """The focal length a camera recorded in a photo's EXIF, in pixels of the photo.
 
-    From the 35 mm equivalent focal length (EXIF ``FocalLengthIn35mmFilm``), which is
-    relative to the diagonal of a 36 × 24 mm frame, so it holds for the photo at any
-    resolution: ``f_px = f35 / 43.27 mm × the photo's diagonal in pixels``. A cropped
-    photo keeps the tag but not the field of view; such photos need ``--focal``.
+    Two ways, the first that the photo records:
+
+    - ``FocalLength`` (mm) times the sensor's ``FocalPlaneXResolution`` (pixels per inch,
+      cm or mm), rescaled from the recorded ``PixelXDimension`` to the photo's width: exact
+      for an uncropped photo at any size;
+    - ``FocalLengthIn35mmFilm``, relative to the diagonal of a 36 × 24 mm frame:
+      ``f_px = f35 / 43.27 mm × the photo's diagonal in pixels`` (what phones record).
+
+    A cropped photo keeps the tags but not the field of view; such photos need ``--focal``.
 
     Returns
     -------
     (focal_px, focal_35mm) or None
-        None when the photo records no 35 mm equivalent focal length.
+        ``focal_35mm`` as recorded, or as the first way implies; None when the photo
+        records neither.
     """
-    with _open(path, kind) as im:
-        try:
-            f35 = im.getexif().get_ifd(_EXIF_IFD).get(_FOCAL_35MM)
-        except (AttributeError, KeyError, TypeError, ValueError):
-            return None
-        w, h = im.size
+    from PIL import Image, UnidentifiedImageError
+
+    path = require_file(path, kind)
     try:
-        f35 = float(f35)
-    except (TypeError, ValueError):
+        with Image.open(path) as im:  # as stored: the sensor's axes
+            exif = im.getexif()
+            ifd = dict(exif.get_ifd(_EXIF_IFD))
+            stored_w, stored_h = im.size
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as e:
+        raise InputError(f"not an image this tool can read ({e.__class__.__name__})", where=path,
+                         fix="give a JPEG or PNG photo") from None
+    w, h = stored_w, stored_h  # the diagonal does not turn with the EXIF orientation
+
+    def number(tag):
+        try:
+            v = float(ifd[tag])
+        except (KeyError, TypeError, ValueError, ZeroDivisionError):
+            return None
+        return v if np.isfinite(v) and v > 0 else None
+
+    diagonal = float(np.hypot(w, h))
+    focal, res, unit = number(_FOCAL_MM), number(_PLANE_X_RES), ifd.get(_PLANE_UNIT, 2)
+    if focal is not None and res is not None and unit in _UNIT_MM:
+        px_per_mm = res / _UNIT_MM[unit]
+        width = number(_PIXEL_X)  # the sensor's x is the stored image's width
+        if width is not None:
+            px_per_mm *= stored_w / width
+        f = focal * px_per_mm
+        return f, f / diagonal * FILM_DIAGONAL_MM
+    f35 = number(_FOCAL_35MM)
+    if f35 is None:
         return None
-    if not np.isfinite(f35) or f35 <= 0:
-        return None
-    return f35 / FILM_DIAGONAL_MM * float(np.hypot(w, h)), f35
+    return f35 / FILM_DIAGONAL_MM * diagonal, f35
 
 
 def photos_focal_px(front: str | os.PathLike, side: str | os.PathLike) -> tuple[float | None, str]:
@@ -110,7 +141,7 @@ def photos_focal_px(front: str | os.PathLike, side: str | os.PathLike) -> tuple[
                       f"(give --focal)")
     (f1, a), (f2, b) = found["front"], found["side"]
     if abs(f1 - f2) > 0.05 * max(f1, f2):
-        return None, (f"the photos record different focal lengths ({a:g} and {b:g} mm, 35 mm equivalent): "
+        return None, (f"the photos record different focal lengths ({a:.0f} and {b:.0f} mm, 35 mm equivalent): "
                       f"orthographic cameras (give --focal)")
     f = 0.5 * (f1 + f2)
-    return f, f"focal length {f:.0f} px from the photos' EXIF ({a:g} mm, 35 mm equivalent)"
+    return f, f"focal length {f:.0f} px from the photos' EXIF ({a:.0f} mm, 35 mm equivalent)"
