@@ -13,7 +13,7 @@ column           what
                  from automatic detection (:func:`recon.landmarks.detect`, when installed)
                  and the head is flagged unreviewed
 ``ipd``          interpupillary distance, mm
-``focal``        focal length, pixels (orthographic cameras when empty)
+``focal``        focal length, pixels (when empty: from the photos' EXIF, else orthographic)
 ``method``       ``dffd`` or ``rbf``
 ``texture_size`` side of the square texture, pixels
 ``atlas``        ``true`` to re-pack the texture into an atlas

@@ -36,7 +36,7 @@ from mpeg4.head import Head
 from .calibrate import DEFAULT_IPD_MM
 from .cameras import FittedCamera, fit_camera
 from .fit import attach_photo_sizes, fit_head, require_views
-from .photos import check_photo, read_photo
+from .photos import check_photo, photos_focal_px, read_photo
 
 __all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "run_build", "bundle_fdp", "build_time",
            "preview_with_photos", "DEFAULT_TEXTURE_SIZE"]
@@ -351,7 +351,8 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
         The bundle's folder (created). Files of a previous build are replaced only once the
         new ones are complete.
     ipd_mm, focal_px, method, texture_size, atlas
-        See :func:`build_head`.
+        See :func:`build_head`. Without ``focal_px``, the focal length the photos record
+        in their EXIF (:func:`recon.photos.photos_focal_px`), else orthographic cameras.
     shape_from, texture_from : path, optional
         Shape–texture separation: the shape from one annotated pair, the texture from
         another (each file names its photos, or ``front``/``side`` give the shape's).
@@ -384,9 +385,15 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
     say("reading the photos and annotations")
     shape = load_pair(shape_path, front, side)
     texture = load_pair(texture_from) if texture_from is not None else None
+    focal_from = "given" if focal_px is not None else None
+    if focal_px is None:
+        focal_px, note = photos_focal_px(shape.paths["front"], shape.paths["side"])
+        focal_from = "exif" if focal_px is not None else None
+        say(note)
     res = build_head(shape, texture, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
                      texture_size=texture_size, atlas=atlas, progress=say)
-    options = {"ipd_mm": ipd_mm, "focal_px": focal_px, "method": method, "texture_size": texture_size,
+    options = {"ipd_mm": ipd_mm, "focal_px": focal_px, "focal_from": focal_from, "method": method,
+               "texture_size": texture_size,
                "atlas": atlas, "shape_texture_separation": texture is not None}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

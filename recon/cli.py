@@ -34,7 +34,8 @@ def fit(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
         fdp: Path = typer.Option(..., "--fdp", help="Annotations of both photos (*.fdp.json)."),
         out: Path = typer.Option(Path("head_out"), "-o", "--out", help="Output folder."),
         ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm (photos carry no size)."),
-        focal: float = typer.Option(None, "--focal", help="Focal length in pixels; orthographic cameras if omitted."),
+        focal: float = typer.Option(None, "--focal", help="Focal length in pixels [default: from the photos' EXIF; "
+                                                          "orthographic cameras if they record none]."),
         method: str = typer.Option("dffd", "--method", help="dffd (exact Sibson) or rbf (thin-plate spline).")
         ) -> None:
     """Fit the generic head to two annotated photos: head.glb, head.fdp.json, preview.png."""
@@ -51,7 +52,8 @@ def build(front: Path = typer.Argument(None, help="Front photo (JPEG/PNG); by de
           fdp: Path = typer.Option(None, "--fdp", help="Annotations of both photos (*.fdp.json)."),
           out: Path = typer.Option(Path("head_out"), "-o", "--out", help="Output folder."),
           ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm (photos carry no size)."),
-          focal: float = typer.Option(None, "--focal", help="Focal length in pixels; orthographic cameras if omitted."),
+          focal: float = typer.Option(None, "--focal", help="Focal length in pixels [default: from the photos' EXIF; "
+                                                          "orthographic cameras if they record none]."),
           method: str = typer.Option("dffd", "--method", help="dffd (exact Sibson) or rbf (thin-plate spline)."),
           texture_size: int = typer.Option(2048, "--texture-size", help="Side of the square texture in pixels."),
           atlas: bool = typer.Option(False, "--atlas", help="Re-pack the texture into a non-overlapping atlas (xatlas)."),
@@ -75,8 +77,9 @@ def batch(manifest: Path = typer.Argument(..., help="Manifest: one person a row 
           scheduler: str = typer.Option(None, "--scheduler", help="Run on this Dask cluster instead "
                                                                   "(tcp://HOST:8786)."),
           ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm, for rows that give none."),
-          focal: float = typer.Option(None, "--focal", help="Focal length in pixels, for rows that give none; "
-                                                            "orthographic cameras if omitted."),
+          focal: float = typer.Option(None, "--focal", help="Focal length in pixels, for rows that give none "
+                                                            "[default: from the photos' EXIF; orthographic "
+                                                            "cameras if they record none]."),
           method: str = typer.Option("dffd", "--method", help="dffd or rbf, for rows that give none."),
           texture_size: int = typer.Option(2048, "--texture-size", help="Texture side in pixels, for rows that "
                                                                         "give none."),
@@ -115,8 +118,9 @@ def annotate(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG), or 
              browser: bool = typer.Option(True, "--browser/--no-browser", help="Open the page in the browser."),
              port: int = typer.Option(0, "--port", help="Port on 127.0.0.1 (0: any free one)."),
              ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm, for the 3D preview."),
-             focal: float = typer.Option(None, "--focal", help="Focal length in pixels, for the 3D preview; "
-                                                               "orthographic cameras if omitted."),
+             focal: float = typer.Option(None, "--focal", help="Focal length in pixels, for the 3D preview "
+                                                               "[default: from the photos' EXIF; orthographic "
+                                                               "cameras if they record none]."),
              unit: str = typer.Option(None, help="3D mode: the mesh's unit (m, cm, mm, in) [default: from its size]."),
              up: str = typer.Option(None, help="3D mode: the mesh's up axis (+y, +z, ...) [default: detected]."),
              forward: str = typer.Option(None, help="3D mode: the axis the face looks along [default: detected]."),

@@ -67,7 +67,7 @@ def attach_photo_sizes(fdp, sizes: dict[str, tuple[int, int]], where: str, photo
 
 
 def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
-             method: str = "dffd", where: str = "fdp.json") -> tuple[Head, Calibration]:
+             method: str = "dffd", where: str = "fdp.json", height_tol_mm: float = 8.0) -> tuple[Head, Calibration]:
     """The generic head deformed to the feature points annotated on two photos.
 
     Parameters
@@ -76,7 +76,7 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
         With ``front`` and ``side`` views (pixels; image sizes when known).
     generic : Head, optional
         The head to deform; the shipped generic head by default.
-    ipd_mm, focal_px
+    ipd_mm, focal_px, height_tol_mm
         See :func:`recon.calibrate.calibrate`.
     method : {"dffd", "rbf"}
         See :func:`recon.deform.deform_head`.
@@ -97,7 +97,7 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
     size = {n: (v.width, v.height) if v.width and v.height else None for n, v in views.items()}
     try:
         cal = calibrate(views["front"].points, views["side"].points, generic, ipd_mm=ipd_mm, focal_px=focal_px,
-                        front_size=size["front"], side_size=size["side"])
+                        front_size=size["front"], side_size=size["side"], height_tol_mm=height_tol_mm)
     except InputError as e:
         raise InputError(e.what, where=f"{where}, {e.where}" if e.where else where, fix=e.fix) from None
     goal = {i: p for i, p in cal.points.items() if cal.source[i] != "generic"}
@@ -123,6 +123,9 @@ def run_fit(front_photo, side_photo, fdp_path, out_dir, ipd_mm: float = DEFAULT_
     out_dir : path
         Output folder (created); ``head.glb``, ``head.fdp.json`` and ``preview.png`` are
         replaced atomically.
+    ipd_mm, focal_px, method
+        See :func:`fit_head`. Without ``focal_px``, the focal length the photos record in
+        their EXIF (:func:`recon.photos.photos_focal_px`), else orthographic cameras.
 
     Returns
     -------
@@ -137,6 +140,11 @@ def run_fit(front_photo, side_photo, fdp_path, out_dir, ipd_mm: float = DEFAULT_
     photos = {"front": front_photo, "side": side_photo}
     attach_photo_sizes(fdp, {n: image_size(p) for n, p in photos.items()}, os.fspath(fdp_path),
                        {n: os.fspath(p) for n, p in photos.items()})
+    if focal_px is None:
+        from .photos import photos_focal_px
+
+        focal_px, note = photos_focal_px(front_photo, side_photo)
+        say(note)
     say("fitting the generic head to the feature points")
     head, cal = fit_head(fdp, ipd_mm=ipd_mm, focal_px=focal_px, method=method, where=os.fspath(fdp_path))
     out = Path(out_dir)

@@ -5,7 +5,9 @@ The person is ICT FaceKit identity seed ``SEED`` (standard-normal identity modes
 model mean) with the skin painted by :mod:`recon.synthetic`, photographed through a
 100 mm-equivalent lens from 1.8 m. Writes ``data/example/front.jpg``, ``side.jpg`` and
 ``example.fdp.json`` (views with their images, sizes and points; the focal length in
-pixels and the true interpupillary distance in ``metadata.synthetic``).
+pixels and the true interpupillary distance in ``metadata.synthetic``). The photos' EXIF
+records the lens as a camera would (focal length, sensor resolution, 35 mm equivalent),
+so ``recon`` takes the perspective from the photos themselves.
 
 Run: ``python3 scripts/make_example_photos.py`` (reads ``../shared/data/ict_facekit``).
 """
@@ -31,6 +33,25 @@ JPEG_QUALITY = 92
 DEFAULT_OUT = ROOT / "data" / "example"
 
 
+def _lens_exif(focal_px: float):
+    """EXIF of the camera, as a real one records it: the lens's focal length, the sensor's
+    resolution and the image size (so that ``recon`` finds the focal length in pixels by
+    itself), and the 35 mm equivalent (relative to the frame's diagonal)."""
+    import numpy as np
+    from PIL import Image
+
+    from recon.photos import FILM_DIAGONAL_MM
+
+    exif = Image.Exif()
+    ifd = exif.get_ifd(0x8769)
+    ifd[0x920A] = FOCAL_MM  # FocalLength, mm
+    ifd[0xA20E] = ifd[0xA20F] = focal_px / FOCAL_MM * 10  # FocalPlaneX/YResolution, px per cm
+    ifd[0xA210] = 3  # FocalPlaneResolutionUnit: centimetre
+    ifd[0xA002], ifd[0xA003] = SIZE  # PixelX/YDimension
+    ifd[0xA405] = round(focal_px / float(np.hypot(*SIZE)) * FILM_DIAGONAL_MM)  # FocalLengthIn35mmFilm
+    return exif
+
+
 def make_example(out: Path, npz: Path | None = None) -> dict[str, Path]:
     """Render the example into ``out`` and return the written paths."""
     from PIL import Image
@@ -41,9 +62,11 @@ def make_example(out: Path, npz: Path | None = None) -> dict[str, Path]:
                           texture_size=2048)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"front": out / "front.jpg", "side": out / "side.jpg", "fdp": out / "example.fdp.json"}
+    exif = _lens_exif(pair.fdp.metadata["synthetic"]["focal_px"])
     for name in ("front", "side"):
         with atomic_write(paths[name], "wb") as f:
-            Image.fromarray(getattr(pair, name)).save(f, format="JPEG", quality=JPEG_QUALITY, optimize=True)
+            Image.fromarray(getattr(pair, name)).save(f, format="JPEG", quality=JPEG_QUALITY, optimize=True,
+                                                      exif=exif)
         pair.fdp.views[name].image = paths[name].name
     pair.fdp.metadata["synthetic"].update(
         source="ICT-FaceKit identity (ICT Face Model Light, MIT), painted by recon.synthetic",

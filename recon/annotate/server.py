@@ -313,7 +313,8 @@ def annotate(front, side=None, fdp=None, open_browser: bool = True, port: int = 
                              fix="give a front and a side photo, or one mesh (.glb, .gltf, .obj, .ply)")
         session = MeshSession(front, fdp, detect=detect, unit=unit, up=up, forward=forward)
     else:
-        session = AnnotationSession(front, side, fdp, detect=detect, ipd_mm=ipd_mm, focal_px=focal_px)
+        session = AnnotationSession(front, side, fdp, detect=detect, ipd_mm=ipd_mm, focal_px=focal_px,
+                                    background=True)
     token = secrets.token_urlsafe(24)
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     try:

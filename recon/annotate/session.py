@@ -136,11 +136,17 @@ class AnnotationSession:
     detect : callable or bool
         Passed to :func:`recon.annotate.placement.initial_annotation`.
     ipd_mm, focal_px : float, optional
-        For the 3D preview's fit (see :func:`recon.fit.fit_head`).
+        For the 3D preview's fit (see :func:`recon.fit.fit_head`); without ``focal_px``,
+        the focal length the photos record in their EXIF, if any (:attr:`camera_note`
+        says which).
+    background : bool
+        Place the first points by automatic detection in a thread, so that the page can
+        load meanwhile (:meth:`wait_ready`; every method that needs the points waits for
+        them). A file that exists is still read at once.
     """
 
     def __init__(self, front, side, fdp_path=None, detect=True, ipd_mm: float | None = None,
-                 focal_px: float | None = None):
+                 focal_px: float | None = None, background: bool = False):
         self.photos = {"front": Photo.open("front", front), "side": Photo.open("side", side)}
         self.fdp_path = Path(fdp_path) if fdp_path is not None else default_fdp_path(front)
         if self.fdp_path.is_dir():
@@ -148,22 +154,54 @@ class AnnotationSession:
                              fix="give a file name such as person.fdp.json")
         self._layout = None
         self._lock = threading.Lock()
-        init = initial_annotation(front, side, self.fdp_path, detect=detect,
-                                  sizes={n: (p.width, p.height) for n, p in self.photos.items()})
-        self.initialisation = init
-        self._base = init.fdp  # what the file holds besides the views; kept on save
-        self.views: dict[str, ViewAnnotation] = {n: init.fdp.views[n] for n in VIEWS}
+        self._ready = threading.Event()
+        self._failure: BaseException | None = None
+        sizes = {n: (p.width, p.height) for n, p in self.photos.items()}
+        if background and detect and not self.fdp_path.exists():
+            # Detection takes a second or two: the server starts and the page loads meanwhile.
+            # (A user's file is read here and now, so that its errors stop the command.)
+            threading.Thread(target=self._initialise, args=(front, side, detect, sizes), daemon=True,
+                             name="recon-annotate-detect").start()
+        else:
+            self._initialise(front, side, detect, sizes)
+            if self._failure is not None:
+                raise self._failure
         self._disk = _hash(self.fdp_path)
         self._foreign = self._disk is not None  # on disk, and not written by this session
         self.saved_at: float | None = self.fdp_path.stat().st_mtime if self._disk else None
         self._tmp = tempfile.TemporaryDirectory(prefix="recon-annotate-")
         self.glb: bytes | None = None
         self.fits = 0
+        self.camera_note = "focal length given"
+        if focal_px is None:
+            from recon.photos import photos_focal_px
+
+            focal_px, self.camera_note = photos_focal_px(front, side)
         self.fit_options = {"focal_px": focal_px} | ({} if ipd_mm is None else {"ipd_mm": ipd_mm})
+
+    def _initialise(self, front, side, detect, sizes) -> None:
+        try:
+            init = initial_annotation(front, side, self.fdp_path, detect=detect, sizes=sizes)
+            self.initialisation = init
+            self._base = init.fdp  # what the file holds besides the views; kept on save
+            self.views: dict[str, ViewAnnotation] = {n: init.fdp.views[n] for n in VIEWS}
+        except BaseException as e:  # kept for whoever asks for the points
+            self._failure = e
+        finally:
+            self._ready.set()
+
+    def wait_ready(self, timeout: float | None = None) -> None:
+        """Wait until the first points are placed (see ``background``); raises what placing
+        them raised."""
+        if not self._ready.wait(timeout):
+            raise TimeoutError("the first points are still being placed")
+        if self._failure is not None:
+            raise self._failure
 
     # --- what the page needs ------------------------------------------------------
     def state(self) -> dict:
         """Everything the page starts from (JSON-ready)."""
+        self.wait_ready()
         from mpeg4.preview import GROUP_COLOURS
 
         return {
@@ -241,6 +279,7 @@ class AnnotationSession:
         SaveConflict
             The file changed on disk since this session last read or wrote it.
         """
+        self.wait_ready()
         views = self.parse_views(data)
         with self._lock:
             on_disk = _hash(self.fdp_path)
@@ -278,6 +317,7 @@ class AnnotationSession:
         InputError
             The file is not a valid annotation of these photos.
         """
+        self.wait_ready()
         from mpeg4.io.fdp_json import read_fdp_json
         from recon.fit import attach_photo_sizes
 
@@ -310,6 +350,7 @@ class AnnotationSession:
         generic head, not touched since) are placed again, by the generic head fitted to
         the other points: a few points dragged into place bring the rest with them.
         """
+        self.wait_ready()
         views = self.parse_views(data)
         if replace_guesses:
             for v in views.values():
@@ -324,15 +365,27 @@ class AnnotationSession:
         """Fit the generic head to the page's points; the GLB is kept in :attr:`glb`.
 
         Returns a summary: 3D points, where each came from, height disagreements between
-        the photos (mm), the camera and size assumptions, the time taken.
+        the photos (mm), the camera and size assumptions, the time taken. Heights that
+        disagree by more than :func:`recon.fit.fit_head` accepts still give a preview, with
+        the refusal as ``warning`` (the files ``recon build`` makes keep the check).
         """
+        self.wait_ready()
         from mpeg4.io import save_head
         from recon.fit import fit_head
 
         views = self.parse_views(data)
         t0 = time.perf_counter()
+        warning = None
         with self._lock:
-            head, cal = fit_head(FdpFile(views=views), where="the page's points", **self.fit_options)
+            try:
+                head, cal = fit_head(FdpFile(views=views), where="the page's points", **self.fit_options)
+            except InputError as e:
+                if "heights of the points marked in both photos disagree" not in e.what:
+                    raise
+                # A preview is still worth showing: the page lists the disagreements.
+                head, cal = fit_head(FdpFile(views=views), where="the page's points", height_tol_mm=float("inf"),
+                                     **self.fit_options)
+                warning = f"{e.what}; {e.fix}"
             # The preview shows the shape: no morph targets or tables to carry.
             head.morph_targets = {}
             head.fat = None
@@ -344,7 +397,7 @@ class AnnotationSession:
                 "points3d": {i: [round(float(c), 6) for c in p] for i, p in head.fp_positions().items()},
                 "sources": cal.source, "roll_deg": round(cal.roll_deg, 3), "assumptions": cal.assumptions,
                 "height_residual_mm": {i: round(float(r), 2) for i, r in cal.height_residual_mm.items()},
-                "bytes": len(self.glb)}
+                "warning": warning, "bytes": len(self.glb)}
 
     def close(self) -> None:
         self._tmp.cleanup()

@@ -146,6 +146,38 @@ def test_initial_annotation_survives_a_failing_detector(photos, layout, capsys):
     assert set(init.fdp.views["front"].points) == set(shown_in("front"))
 
 
+def test_a_background_session_serves_its_photos_while_the_points_are_placed(photos, tmp_path):
+    import threading
+    import time
+
+    gate = threading.Event()
+
+    def slow(front, side):  # a detector that takes its time, then fails
+        gate.wait(10)
+        raise RuntimeError("no face")
+
+    t0 = time.perf_counter()
+    s = AnnotationSession(*photos, tmp_path / "new.fdp.json", detect=slow, background=True)
+    assert time.perf_counter() - t0 < 5 and not s._ready.is_set()
+    c = TestClient(create_app(s, TOKEN), base_url=BASE, headers={TOKEN_HEADER: TOKEN})
+    assert c.get("/api/photo/front").status_code == 200  # served while the detector runs
+    got = {}
+    asker = threading.Thread(target=lambda: got.update(state=c.get("/api/state").json()))
+    asker.start()
+    asker.join(0.3)
+    assert asker.is_alive()  # the page's first request waits for the points...
+    gate.set()
+    asker.join(10)
+    state = got["state"]  # ... and gets them once placed
+    assert state["initialisation"]["source"] == "generic" and "RuntimeError: no face" in state["initialisation"]["message"]
+    assert set(state["views"]["front"]["points"]) == set(shown_in("front"))
+    s.close()
+    # An existing file is read at once, and its errors stop the session there.
+    (tmp_path / "bad.fdp.json").write_text("{")
+    with pytest.raises(InputError, match="bad.fdp.json"):
+        AnnotationSession(*photos, tmp_path / "bad.fdp.json", detect=slow, background=True)
+
+
 def test_the_landmarks_seam():
     detect, why = detector()
     if importlib.util.find_spec("recon.landmarks") is None:
@@ -377,6 +409,23 @@ def test_fit_serves_a_valid_head(client, validate_gltf, tmp_path):
     (tmp_path / "preview.glb").write_bytes(head.content)
     assert validate_gltf(tmp_path / "preview.glb")["issues"]["numErrors"] == 0
     assert max(abs(d) for d in fit["height_residual_mm"].values()) < 1.0
+
+
+def test_heights_that_disagree_still_give_a_preview_with_the_refusal(client):
+    views = _views(client)
+    assert client.post("/api/fit", json={"views": views}).json()["warning"] is None
+    # The side photo's hairline 60 px lower than the front photo's (about 18 mm).
+    p = views["side"]["points"]["11.1"]
+    views["side"]["points"]["11.1"] = [p[0], p[1] + 60]
+    fit = client.post("/api/fit", json={"views": views}).json()
+    assert "heights of the points marked in both photos disagree: 11.1" in fit["warning"]
+    assert "--focal" in fit["warning"] and abs(fit["height_residual_mm"]["11.1"]) > 8.0
+    # The build keeps its check.
+    from mpeg4.io.fdp_json import parse_fdp
+    from recon.fit import fit_head
+
+    with pytest.raises(InputError, match="disagree: 11.1"):
+        fit_head(parse_fdp({"format": "mpeg4-fdp", "version": 1, "views": views}), where="x")
 
 
 def test_the_preview_fit_uses_the_given_camera_and_size(photos, tmp_path):
