@@ -767,7 +767,8 @@ def lift(head: Head, views: Views, found: FdpFile, surface: _Surface | None = No
     view is the front ray's first hit, its confidence lowered where the side view puts it
     elsewhere; a point only the side view shows clearly is the side ray's first hit (a ray
     grazing a rim takes the rim); its right partner (the side view shows the left) is the
-    mirror image, snapped; a pupil on a separate eyeball is the eyeball's front.
+    mirror image, snapped; a pupil on a separate eyeball is the eyeball's front (on a head
+    whose eyes are named parts, wherever the detector put it).
 
     Parameters
     ----------
@@ -838,6 +839,16 @@ def lift(head: Head, views: Views, found: FdpFile, surface: _Surface | None = No
         if len(eye) < 0.5 * len(surface.vertices) and np.linalg.norm(apex - h.point) < 0.008:
             tri, snapped = surface.closest(apex[None], [h.part])
             out[i] = surface.hit(tri[0], snapped[0], h.confidence, "eye front")
+    # Once the eyes are named parts (the last pass), a pupil is the front of its eyeball
+    # wherever the detector put it; a detector far from it is trusted less.
+    for i, role in (("3.5", "eye_l"), ("3.6", "eye_r")):
+        h = out.get(i)
+        if h is None or h.how == "eye front" or role not in head.parts:
+            continue
+        eye = head.parts[role].vertices
+        tri, snapped = surface.closest(eye[np.argmax(eye[:, 2])][None], [role])
+        near = np.linalg.norm(snapped[0] - h.point) < 0.008
+        out[i] = surface.hit(tri[0], snapped[0], h.confidence * (1.0 if near else 0.5), "eye front")
     # Right partners of points only the (left) side view shows.
     partners = [(FEATURE_POINTS[i].mirror, i) for i in list(out) if FEATURE_POINTS[i].side == "L"
                 and FEATURE_POINTS[i].mirror not in out and out[i].how == "side ray"]
