@@ -36,22 +36,22 @@ References
 .. [1] I. S. Pandžić, "Facial motion cloning", Graphical Models 65(6) (2003) 385-404.
 """
 
-from .align import (FPTriangulation, delaunay_fp_triangulation, folded_triangles, load_fp_triangulation,
-                    triangulation_for, vertex_positions, warp)
-from .cloning import (ANTIALIAS_SUPPORT, REQUIRED_FPS, Correspondence, align_target, check_head, clone, clone_targets,
+from .align import (FPTriangulation, bilaplacian, delaunay_fp_triangulation, folded_triangles, load_fp_triangulation,
+                    midway, surface_warp, triangulation_for, vertex_positions, warp)
+from .cloning import (ANTIALIAS_FRACTION, REQUIRED_FPS, Correspondence, align_heads, check_head, clone, clone_targets,
                       correspond, lip_sides, pin_feature_points, skin_weights)
-from .interpolate import TriangleIndex, disc_samples, interpolation_matrix
+from .interpolate import TriangleIndex, disc_samples, gradient_operator, interpolation_matrix
 from .parts import PART_ROLES, PartRef, find_parts, rigid_motion, sphere_centre
 from .regions import LIP_FPS, lip_classes, lip_sides_on_mesh, normalisation, region_scales
 from .space import MOUTH_SPAN, alignment_space, cylinder_axis
 
 __all__ = [
-    "clone", "clone_targets", "correspond", "Correspondence", "check_head", "REQUIRED_FPS", "ANTIALIAS_SUPPORT",
-    "align_target", "lip_sides", "skin_weights", "pin_feature_points",
+    "clone", "clone_targets", "correspond", "Correspondence", "check_head", "REQUIRED_FPS", "ANTIALIAS_FRACTION",
+    "align_heads", "lip_sides", "skin_weights", "pin_feature_points",
     "normalisation", "region_scales", "lip_classes", "lip_sides_on_mesh", "LIP_FPS",
     "alignment_space", "cylinder_axis", "MOUTH_SPAN",
     "FPTriangulation", "load_fp_triangulation", "delaunay_fp_triangulation", "triangulation_for", "vertex_positions",
-    "folded_triangles", "warp",
-    "TriangleIndex", "disc_samples", "interpolation_matrix",
+    "folded_triangles", "warp", "midway", "surface_warp", "bilaplacian",
+    "TriangleIndex", "disc_samples", "gradient_operator", "interpolation_matrix",
     "PART_ROLES", "PartRef", "find_parts", "rigid_motion", "sphere_centre",
 ]

@@ -237,20 +237,26 @@ def test_antialiasing_takes_the_roughness_out_of_dense_to_sparse(bench, identity
     assert correspond(source, identity).support == 0  # as dense as the source: off
     names = ["jawOpen", "mouthSmile_L", "eyeBlink_L", "browInnerUp_R"]
     truth = bench.scaled_truth(source, identity, names)
+    truth = {m: {"skin": SparseDisplacement.from_dense(truth[m]["skin"].dense(source.skin.n_vertices)[kept])}
+             for m in names}
     face = kept < 9409
-    rough = {}
-    for support in (0.0, None):
+    rough, err = {}, {}
+    for support in (0.0, None, 0.02):
         corr = correspond(source, coarse, antialias=support)
         if support is None:
-            assert corr.support == pytest.approx(0.02)  # sparser than the source: on
+            # Sparser than the source: on, a disc a fraction of each vertex's edges.
+            assert 0.001 < corr.support < 0.01
         cl = corr.transfer({m: source.morph_targets[m] for m in names})
         rough[support] = np.mean([bench.roughness(cl[m]["skin"].dense(len(kept)), coarse.skin.triangles, face)
                                   for m in names])
-    rough_truth = np.mean([bench.roughness(truth[m]["skin"].dense(source.skin.n_vertices)[kept],
-                                           coarse.skin.triangles, face) for m in names])
-    # Without the filter the field is rougher than the truth's (measured 0.145 against
-    # 0.141); with it, no rougher than the truth (0.136).
-    assert rough[0.0] > rough_truth > rough[None]
+        err[support] = np.mean([_pyun(cl[m], truth[m], len(kept)) for m in names])
+    rough_truth = np.mean([bench.roughness(truth[m]["skin"].dense(len(kept)), coarse.skin.triangles, face)
+                           for m in names])
+    # Without the filter the field is rougher than the truth's (measured 0.1431 against
+    # 0.1408); with it, nearer the truth (0.1414) and no less accurate (6.32 % against
+    # 6.37 %). A fixed disc of 0.02 smooths too much: 0.1363 and 6.66 %.
+    assert rough[0.0] > rough[None] > rough_truth > rough[0.02]
+    assert err[None] <= err[0.0] < err[0.02]
 
 
 def _angle(r):
