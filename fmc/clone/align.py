@@ -32,7 +32,7 @@ from .interpolate import TriangleIndex
 from .space import alignment_space
 
 __all__ = ["FPTriangulation", "load_fp_triangulation", "delaunay_fp_triangulation", "triangulation_for",
-           "vertex_positions", "folded_triangles", "warp", "midway", "surface_warp", "bilaplacian"]
+           "vertex_positions", "folded_triangles", "warp", "midway", "surface_warp", "bilaplacian", "outer_radius"]
 
 
 @dataclass(frozen=True)
@@ -274,3 +274,30 @@ def surface_warp(head: Head, space: np.ndarray, tri: FPTriangulation, from_posit
         rhs = -(big[free][:, ~free] @ shift[~free])
         shift[free] = spsolve(big[free][:, free].tocsc(), rhs).reshape(-1, 2)
     return np.c_[space[:, :2] + shift, space[:, 2] * np.exp(log_rho[:, 0])]
+
+
+def outer_radius(space: np.ndarray, triangles: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(K,) the radius of a mesh's outermost layer over each of ``points`` (K, 2) in the
+    alignment space (NaN where no triangle lies over the point).
+
+    Parameters
+    ----------
+    space : (V, 3) float
+        The mesh's vertices in the alignment space (angle, height, radius).
+    triangles : (T, 3) int
+        Its triangles; those spanning more than half a turn of angle (across the back of
+        the head, where the angle wraps) are left out.
+    points : (K, 2) float
+    """
+    space = np.asarray(space, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    ang = space[t, 0]
+    index = TriangleIndex(space[:, :2], t[ang.max(axis=1) - ang.min(axis=1) < np.pi])
+    points = np.asarray(points, dtype=np.float64)[:, :2]
+    point, tris = index.candidates(points)
+    bary = index.barycentric(points[point], tris)
+    over = bary.min(axis=1) >= -1e-9
+    radius = np.einsum("nj,nj->n", bary[over], space[index.triangles[tris[over]], 2])
+    out = np.full(len(points), -np.inf)
+    np.maximum.at(out, point[over], radius)
+    return np.where(np.isfinite(out), out, np.nan)

@@ -22,7 +22,7 @@ from mpeg4.catalogue import FAPS, FAPU_DEFINITIONS, FP_IDS
 from mpeg4.errors import InputError
 from mpeg4.head import Head, SparseDisplacement
 
-from .align import folded_triangles, midway, surface_warp, triangulation_for, vertex_positions, warp
+from .align import folded_triangles, midway, outer_radius, surface_warp, triangulation_for, vertex_positions, warp
 from .interpolate import gradient_operator, interpolation_matrix
 from .parts import PartRef, feature_point_pins, find_parts, part_correspondence, transfer_part_motion
 from .regions import (LIP_FPS, face_scale, lip_classes, lip_sides_on_mesh, lip_vertex_classes, normalisation,
@@ -333,20 +333,29 @@ def align_heads(source: Head, target: Head, tri, source_space: np.ndarray, targe
         if folded:
             notes.append(f"on the {who} the feature-point triangles {'; '.join(' '.join(f) for f in folded[:4])} "
                          "are turned over: check those points' places")
-    mid = midway(s_pos, t_pos)
-    if alignment == "surface":
-        return surface_warp(source, source_space, tri, s_pos, mid), surface_warp(target, target_space, tri, t_pos, mid), \
-            notes
-    if alignment != "affine":
+    if alignment not in ("surface", "affine"):
         raise InputError(f"unknown alignment {alignment!r}", fix="use 'surface' or 'affine'")
+    mid = midway(s_pos, t_pos)
     out = []
-    for pos, space in ((s_pos, source_space), (t_pos, target_space)):
-        fp_rows = ~tri.frame
-        log_ratio = np.zeros(len(tri.names))
-        log_ratio[fp_rows] = np.log(mid[fp_rows, 2] / pos[fp_rows, 2])
-        log_ratio[tri.frame] = np.median(log_ratio[fp_rows])
-        moved, log_rho = warp(space[:, :2], tri, pos, mid, values=log_ratio)
-        out.append(np.c_[moved, space[:, 2] * np.exp(log_rho[:, 0])])
+    for head, other, pos, space in ((source, target, s_pos, source_space), (target, source, t_pos, target_space)):
+        if alignment == "surface":
+            moved = surface_warp(head, space, tri, pos, mid)
+        else:
+            fp_rows = ~tri.frame
+            log_ratio = np.zeros(len(tri.names))
+            log_ratio[fp_rows] = np.log(mid[fp_rows, 2] / pos[fp_rows, 2])
+            log_ratio[tri.frame] = np.median(log_ratio[fp_rows])
+            xy, log_rho = warp(space[:, :2], tri, pos, mid, values=log_ratio)
+            moved = np.c_[xy, space[:, 2] * np.exp(log_rho[:, 0])]
+        # Under the outer surface (the mouth's inside under the lips, the sockets under
+        # the lids) the depth below it follows the head's size (half-way: the square root
+        # of the two eye separations' ratio), not the radii's ratio, which would press a
+        # deep layer towards the axis with the face.
+        outer = outer_radius(space, head.skin.triangles, space[:, :2])
+        outer = np.where(np.isfinite(outer), np.maximum(outer, space[:, 2]), space[:, 2])
+        size = np.sqrt(other.fapu.ES0 / head.fapu.ES0)
+        moved[:, 2] = outer * (moved[:, 2] / space[:, 2]) - (outer - space[:, 2]) * size
+        out.append(moved)
     return out[0], out[1], notes
 
 
