@@ -1,12 +1,15 @@
-"""Feature-point alignment: the target's projection moved onto the source's.
+"""Feature-point alignment: the two heads' projections moved onto one another.
 
-The target's feature points are moved onto the source's in the alignment space and every
-other point is carried along by the piecewise-affine map over a triangulation of the
-feature points [1]_. The shipped triangulation (``fmc/data/fp_triangulation.toml``, its
-header says how it was made) is the same for every pair of heads, so the map from A to B
-is the exact inverse of the one from B to A; a frame of fixed points around the face
-closes it, beyond which nothing moves. A Delaunay triangulation of the source's points
-is the alternative.
+Both heads' feature points are moved half-way to each other's in the alignment space
+(:func:`midway`) and every other point is carried along [1]_: by default with a
+bi-harmonic interpolation over the head's own mesh between the feature points
+(:func:`surface_warp`), else by the piecewise-affine map over a triangulation of the
+feature points (:func:`warp`). The shipped triangulation (``fmc/data/fp_triangulation.toml``,
+its header says how it was made) is the same for every pair of heads and the half-way
+places are the same from either side, so cloning A → B and B → A match the meshes in
+the same space: the two correspondences are one. A frame of fixed points around the face
+closes the triangulation, beyond which nothing moves. A Delaunay triangulation of the
+source's points is the alternative.
 
 References
 ----------
