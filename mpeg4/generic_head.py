@@ -17,7 +17,8 @@ from pathlib import Path
 from .errors import InputError
 from .head import Head
 
-__all__ = ["GENERIC_HEAD_DIR", "generic_head_path", "generic_fat_path", "load_generic_head"]
+__all__ = ["GENERIC_HEAD_DIR", "generic_head_path", "generic_fat_path", "load_generic_head",
+           "generic_feature_points"]
 
 #: Folder of the shipped generic head.
 GENERIC_HEAD_DIR = Path(__file__).resolve().parents[1] / "data" / "generic_head"
@@ -70,3 +71,20 @@ def load_generic_head(with_fat: bool = False) -> Head:
                              fix="run: python3 scripts/build_generic_fat.py")
         head.fat = copy.deepcopy(_load_fat(str(fat_path)))
     return head
+
+
+@functools.lru_cache(maxsize=4)
+def _feature_points(path: str) -> dict:
+    from .io.gltf import read_glb_feature_points
+
+    return read_glb_feature_points(path)
+
+
+def generic_feature_points() -> dict:
+    """The generic head's feature points, FP id → (3,) metres, without loading the head
+    (read from the GLB's JSON chunk, once per process)."""
+    path = generic_head_path()
+    if not path.exists():
+        raise InputError("the generic head is missing", where=str(path),
+                         fix="run: python3 scripts/build_generic_head.py (it needs ../shared/data/ict_facekit)")
+    return copy.deepcopy(_feature_points(str(path)))

@@ -132,7 +132,8 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
         Image sizes: points outside are errors; needed for the principal point with
         ``focal_px`` (the image centre).
     height_tol_mm : float
-        Largest accepted disagreement between a point's height in the two views.
+        Largest accepted disagreement between a point's height in the two views (``inf``:
+        no check; recorded as None in the assumptions).
 
     Returns
     -------
@@ -206,7 +207,11 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
         raise InputError("the heights of the points marked in both photos disagree: "
                          + ", ".join(f"{i} by {resid[i] * 1000:+.1f} mm" for i in top),
                          where="side view", fix=f"check those points (tolerance {height_tol_mm:g} mm); the two "
-                                                "photos must show the same neutral pose")
+                                                "photos must show the same neutral pose"
+                                                + ("; photos taken from nearer than a few metres need the lens's "
+                                                   "focal length (--focal, pixels): without it the heights of "
+                                                   "points far from the middle disagree by a few mm"
+                                                   if focal_px is None else ""))
 
     # Assemble: x from the front (0 on the midline), y from both, z from the side.
     pts: dict[str, list] = {}
@@ -260,7 +265,8 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
         side_facing="right" if facing > 0 else "left", visible_side=visible,
         height_residual_mm={i: float(resid[i] * 1000) for i in shared},
         assumptions=dict(ipd_mm=float(ipd_mm), camera="orthographic" if focal_px is None
-                         else f"perspective, focal length {focal_px:g} px", height_tol_mm=height_tol_mm))
+                         else f"perspective, focal length {focal_px:g} px",
+                         height_tol_mm=float(height_tol_mm) if np.isfinite(height_tol_mm) else None))
 
 
 def _generic_guess(g: dict, full: list, known: np.ndarray) -> dict:

@@ -67,7 +67,7 @@ def attach_photo_sizes(fdp, sizes: dict[str, tuple[int, int]], where: str, photo
 
 
 def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
-             method: str = "dffd", where: str = "fdp.json") -> tuple[Head, Calibration]:
+             method: str = "dffd", where: str = "fdp.json", height_tol_mm: float = 8.0) -> tuple[Head, Calibration]:
     """The generic head deformed to the feature points annotated on two photos.
 
     Parameters
@@ -76,7 +76,7 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
         With ``front`` and ``side`` views (pixels; image sizes when known).
     generic : Head, optional
         The head to deform; the shipped generic head by default.
-    ipd_mm, focal_px
+    ipd_mm, focal_px, height_tol_mm
         See :func:`recon.calibrate.calibrate`.
     method : {"dffd", "rbf"}
         See :func:`recon.deform.deform_head`.
@@ -97,7 +97,7 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
     size = {n: (v.width, v.height) if v.width and v.height else None for n, v in views.items()}
     try:
         cal = calibrate(views["front"].points, views["side"].points, generic, ipd_mm=ipd_mm, focal_px=focal_px,
-                        front_size=size["front"], side_size=size["side"])
+                        front_size=size["front"], side_size=size["side"], height_tol_mm=height_tol_mm)
     except InputError as e:
         raise InputError(e.what, where=f"{where}, {e.where}" if e.where else where, fix=e.fix) from None
     goal = {i: p for i, p in cal.points.items() if cal.source[i] != "generic"}

@@ -494,6 +494,38 @@ def read_glb(path: str | os.PathLike) -> Head:
     return _read_foreign(r)
 
 
+def read_glb_feature_points(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """The feature point positions a GLB written by :func:`write_glb` stores, read from
+    its JSON chunk alone (milliseconds, where :func:`read_glb` decodes every buffer).
+
+    Returns
+    -------
+    dict of str to (3,) float64
+        FP id → position in metres, in catalogue order; empty for a file without them.
+    """
+    import json
+    import struct
+
+    path = require_file(path, "head file")
+    with open(path, "rb") as f:
+        head = f.read(20)
+        if len(head) == 20 and head[:4] == b"glTF" and head[16:20] == b"JSON":
+            doc = json.loads(f.read(struct.unpack("<I", head[12:16])[0]))
+        else:
+            f.seek(0)
+            try:
+                doc = json.loads(f.read())
+            except ValueError as e:
+                raise InputError(f"not a glTF file ({e})", where=os.fspath(path)) from None
+    for node in doc.get("nodes", []):
+        ext = (node.get("extras") or {}).get("mpeg4")
+        if isinstance(ext, dict):
+            fps = ext.get("feature_points") or {}
+            return {i: np.array(fps[i]["position"], float) for i in FP_IDS
+                    if i in fps and "position" in fps[i]}
+    return {}
+
+
 def _read_own(r: _Reader, ext: dict) -> Head:
     gltf = r.gltf
     if ext.get("version", 0) > FORMAT_VERSION:

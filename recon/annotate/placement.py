@@ -18,8 +18,6 @@ in the photo supports them), so that the tool lists them for checking.
 
 from __future__ import annotations
 
-import copy
-import functools
 import importlib
 import importlib.util
 import os
@@ -91,20 +89,14 @@ def generic_layout(head=None) -> dict[str, dict[str, np.ndarray]]:
         side photo is the mirror image, which :func:`fit_view` finds).
     """
     if head is None:
-        from mpeg4.generic_head import generic_head_path
+        # The stored positions alone: decoding the whole head would double the tool's start-up.
+        from mpeg4.generic_head import generic_feature_points
 
-        return copy.deepcopy(_generic_layout(os.fspath(generic_head_path())))
-    pts = head.fp_positions()
+        pts = generic_feature_points()
+    else:
+        pts = head.fp_positions()
     return {"front": {i: np.array([p[0], -p[1]]) for i, p in pts.items()},
             "side": {i: np.array([-p[2], -p[1]]) for i, p in pts.items()}}
-
-
-@functools.lru_cache(maxsize=2)
-def _generic_layout(path: str) -> dict:
-    # Read once per process: the tool asks again each time it fills missing points.
-    from mpeg4.generic_head import load_generic_head
-
-    return generic_layout(load_generic_head())
 
 
 @dataclass

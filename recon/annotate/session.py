@@ -324,15 +324,26 @@ class AnnotationSession:
         """Fit the generic head to the page's points; the GLB is kept in :attr:`glb`.
 
         Returns a summary: 3D points, where each came from, height disagreements between
-        the photos (mm), the camera and size assumptions, the time taken.
+        the photos (mm), the camera and size assumptions, the time taken. Heights that
+        disagree by more than :func:`recon.fit.fit_head` accepts still give a preview, with
+        the refusal as ``warning`` (the files ``recon build`` makes keep the check).
         """
         from mpeg4.io import save_head
         from recon.fit import fit_head
 
         views = self.parse_views(data)
         t0 = time.perf_counter()
+        warning = None
         with self._lock:
-            head, cal = fit_head(FdpFile(views=views), where="the page's points", **self.fit_options)
+            try:
+                head, cal = fit_head(FdpFile(views=views), where="the page's points", **self.fit_options)
+            except InputError as e:
+                if "heights of the points marked in both photos disagree" not in e.what:
+                    raise
+                # A preview is still worth showing: the page lists the disagreements.
+                head, cal = fit_head(FdpFile(views=views), where="the page's points", height_tol_mm=float("inf"),
+                                     **self.fit_options)
+                warning = f"{e.what}; {e.fix}"
             # The preview shows the shape: no morph targets or tables to carry.
             head.morph_targets = {}
             head.fat = None
@@ -344,7 +355,7 @@ class AnnotationSession:
                 "points3d": {i: [round(float(c), 6) for c in p] for i, p in head.fp_positions().items()},
                 "sources": cal.source, "roll_deg": round(cal.roll_deg, 3), "assumptions": cal.assumptions,
                 "height_residual_mm": {i: round(float(r), 2) for i, r in cal.height_residual_mm.items()},
-                "bytes": len(self.glb)}
+                "warning": warning, "bytes": len(self.glb)}
 
     def close(self) -> None:
         self._tmp.cleanup()

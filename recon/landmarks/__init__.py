@@ -7,11 +7,16 @@
 - front photo (:mod:`recon.landmarks.front`): MediaPipe's face mesh and irises
   (:mod:`recon.landmarks.models`), mapped to the MPEG-4 points by a table stored as data
   (:mod:`recon.landmarks.mapping`, ``recon/data/facemesh_mpeg4.csv``); the points no face
-  mesh has (hairline, top of the head, ears) from the head's silhouette and colours, or
-  from the face's proportions;
-- side photo (:mod:`recon.landmarks.side`): the profile curve of the head's silhouette,
-  facing either way, with the heights of the points both photos show carried over from
-  the front.
+  mesh has from the head's silhouette and colours (:mod:`recon.landmarks.colour`): the
+  hairline where the skin gives way to hair up the forehead, the top of the head, the ears
+  where they stand out of the head's outline; from the face's proportions when the photo
+  shows nothing better;
+- side photo (:mod:`recon.landmarks.side`), facing either way: the front photo's face mesh
+  laid onto the profile silhouette (:mod:`recon.landmarks.profile`) and carried into the
+  side photo by a second table (``recon/data/facemesh_side.csv``), the heights the front
+  photo gives; then moved onto what the side photo shows (:mod:`recon.landmarks.side_parts`:
+  the white of the eye, the lips, the ear's outline) and onto the profile's outline, with
+  the hairline, the top and the back of the head read off it.
 
 The models run offline from the ``mediapipe`` wheel; without it :func:`detect` raises
 :class:`~recon.landmarks.models.MediapipeMissing` saying how to install it.
@@ -40,7 +45,9 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
     FdpFile
         ``views["front"]`` and ``views["side"]`` with points and confidences;
         ``metadata["landmarks"]``: per view, the source of each point
-        (:data:`SOURCES`), and the side the side photo shows.
+        (:data:`SOURCES`; on the side photo all are ``silhouette`` or ``rule``: its points
+        are the front photo's mesh placed by the side photo's silhouette), the side the side
+        photo shows, and which of the eye, lips and ear the side photo was seen to show.
     """
     f = detect_front(front, front_name)
     s, shown = detect_side(side, f, front.shape[0], side_name)
@@ -50,6 +57,7 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
                                      points=dict(v.points), confidence=dict(v.confidence))
     meta = {"landmarks": {"method": "recon.landmarks (MediaPipe face mesh + silhouettes)",
                           "side_shows": shown,
+                          "side_parts_seen": [k for k in ("eye", "lips", "ear") if s.extras.get(k) is not None],
                           "source": {"front": dict(f.source), "side": dict(s.source)}}}
     return FdpFile(views=views, metadata=meta)
 

@@ -5,9 +5,12 @@ Three sources, each point keeping the name of its own (:data:`SOURCES`):
 - ``model``: the face mesh's landmarks mapped by the table (:mod:`recon.landmarks.mapping`),
   the pupils at the iris centres;
 - ``silhouette``: what the mesh does not cover, read off the head's silhouette and colours —
-  the top of the hair (11.5) where the face's midline leaves the silhouette, the hairline
-  (11.1, and 11.2/11.3 above the outer ends of the eyebrows) where skin colour gives way
-  going up the forehead, the ears where they stand out of the head's outline;
+  the top of the hair (11.5) where the face's midline leaves the silhouette; the hairline
+  (11.1 up the midline from between the brows, 11.2/11.3 above the outer ends of the
+  eyebrows) at the first sharp change from skin to hair colour
+  (:func:`recon.landmarks.colour.hairline_on`), or at the brows when a fringe comes down
+  to them; the ears where the head's outline steps out and back in beside the face, and
+  the bump is skin-coloured (:func:`ear_from_outline`);
 - ``rule``: proportions of the face when the photo shows nothing better (the top of the
   skull 11.4 under the hair, a hairline that is not there, ears hidden by hair).
 """
@@ -20,18 +23,21 @@ import numpy as np
 
 from mpeg4.errors import InputError
 
+from .colour import FAR, ColourModel, hair_share, hairline_on, lab_at, sample_patches, to_lab
 from .mapping import apply_mapping, load_mapping
 from .models import face_landmarks
 from .silhouette import head_mask, row_extents
 
-__all__ = ["SOURCES", "ViewPoints", "detect_front", "skin_model", "hairline_along"]
+__all__ = ["SOURCES", "ViewPoints", "detect_front", "skin_and_hair", "hairline_along", "ear_from_outline"]
 
 #: How a point was found, from best to worst supported.
 SOURCES = ("model", "silhouette", "rule")
 
 # Face mesh landmarks used below by name (the surface mesh's own numbering).
-_FOREHEAD = (151, 108, 337, 109, 338)  # skin patches for the colour model, with the cheeks
-_CHEEKS = (50, 280, 205, 425, 118, 347)
+# Skin patches for the colour model: the cheeks and the nose's bridge, which no fringe
+# hides, and the forehead where it looks like them.
+_SKIN = (50, 280, 205, 425, 118, 347, 168, 6, 197)
+_FOREHEAD = (151, 108, 337, 109, 338)
 _FOREHEAD_TOP, _NASION, _CHIN = 10, 168, 152
 _OVAL_LEFT = (10, 338, 297, 332, 284, 251, 389, 356, 454, 323, 361, 288, 397, 365, 379, 378, 400, 377, 152)
 _OVAL_RIGHT = (10, 109, 67, 103, 54, 21, 162, 127, 234, 93, 132, 58, 172, 136, 150, 149, 176, 148, 152)
@@ -70,78 +76,66 @@ class ViewPoints:
         self.source[fp] = source
 
 
-def skin_model(image: np.ndarray, centres: np.ndarray, radius: int) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and inverse covariance of the skin's CIELAB colour in square patches.
+def skin_and_hair(lab: np.ndarray, mask: np.ndarray, lm: np.ndarray, top: np.ndarray, up: np.ndarray,
+                  ipd: float) -> tuple[ColourModel, ColourModel | None]:
+    """The skin's colour model (the face mesh's cheeks and nose bridge, and the forehead
+    where it matches them) and the hair's (the crown just below the top of the silhouette),
+    None when the crown is skin-coloured (no hair)."""
+    r = max(2, int(0.03 * ipd))
+    skin = ColourModel.fit(sample_patches(lab, lm[list(_SKIN), :2], r))
+    # The forehead too, where it is skin (not under a fringe): its light differs.
+    forehead = sample_patches(lab, lm[list(_FOREHEAD), :2], r)
+    forehead = forehead[skin.distance2(forehead) < FAR]
+    if len(forehead) > 10:
+        skin = ColourModel.fit(np.concatenate([sample_patches(lab, lm[list(_SKIN), :2], r), forehead]))
+    across = np.array([-up[1], up[0]])
+    crown = [top - d * ipd * up + a * ipd * across for d in (0.08, 0.16, 0.24) for a in (-0.2, 0.0, 0.2)]
+    crown = sample_patches(lab, np.array(crown), r, mask)
+    if len(crown) < 10 or np.median(skin.distance2(crown)) < 0.4 * FAR:
+        return skin, None
+    return skin, ColourModel.fit(crown)
+
+
+def hairline_along(lab: np.ndarray, mask: np.ndarray, start: np.ndarray, up: np.ndarray, half_width: float,
+                   skin: ColourModel, hair: ColourModel | None, scale: float) -> tuple[np.ndarray | None, float]:
+    """Where the skin gives way to hair going ``up`` from ``start`` in a straight line
+    (:func:`recon.landmarks.colour.hairline_on` along it).
 
     Parameters
     ----------
-    image : (H, W, 3) uint8
-    centres : (K, 2) float
-        Patch centres, pixels.
-    radius : int
-        Half the patch side, pixels.
-    """
-    from skimage.color import rgb2lab
-
-    h, w = image.shape[:2]
-    samples = []
-    for x, y in np.round(centres).astype(int):
-        x0, x1, y0, y1 = max(0, x - radius), min(w, x + radius + 1), max(0, y - radius), min(h, y + radius + 1)
-        if x1 > x0 and y1 > y0:
-            samples.append(rgb2lab(image[y0:y1, x0:x1]).reshape(-1, 3))
-    lab = np.concatenate(samples)
-    mean = lab.mean(axis=0)
-    # A floor on the spread: a flat-lit forehead would otherwise call every shadow hair.
-    cov = np.cov(lab.T) + np.diag([9.0, 4.0, 4.0])
-    return mean, np.linalg.inv(cov)
-
-
-def _not_skin(image, pts: np.ndarray, mean, icov, limit: float = 16.0) -> np.ndarray:
-    from skimage.color import rgb2lab
-
-    h, w = image.shape[:2]
-    xy = np.clip(np.round(pts).astype(int), 0, [w - 1, h - 1])
-    lab = rgb2lab(image[xy[:, 1], xy[:, 0]][None])[0]
-    d = lab - mean
-    return np.einsum("ki,ij,kj->k", d, icov, d) > limit
-
-
-def hairline_along(image: np.ndarray, mask: np.ndarray, start: np.ndarray, up: np.ndarray, half_width: float,
-                   skin: tuple, step: float = 1.0) -> tuple[np.ndarray | None, float]:
-    """First place going ``up`` from ``start`` where the head stops being skin-coloured.
-
-    A band ``half_width`` pixels either side of the line is tested at each step; the
-    hairline is where most of it is not skin and stays so for the next few steps.
+    lab : (H, W, 3) float
+        The photo's colours (:func:`recon.landmarks.colour.to_lab`).
+    mask : (H, W) bool
+        The head's silhouette.
+    start, up : (2,) float
+        Where to start, and the direction up the head (pixels).
+    half_width : float
+        Half the band's width, pixels.
+    skin, hair : ColourModel
+        The skin's colours, and the hair's (None: no hair sampled).
+    scale : float
+        How far above and below a place the colours are compared, pixels.
 
     Returns
     -------
     point : (2,) float or None
         None when the line leaves the silhouette first (no hair there).
     strength : float
-        Share of the band that is not skin just past the hairline, in [0, 1].
+        Share of the band that is hair just above the hairline, in [0, 1].
     """
     up = np.asarray(up, float) / np.linalg.norm(up)
     across = np.array([-up[1], up[0]])
-    offsets = np.linspace(-half_width, half_width, 9)
     h, w = mask.shape
-    run, first = 0, None
-    need = max(3, int(0.25 * half_width / step))
-    share = 0.0
-    for k in range(int(2 * h / step)):
-        c = start + k * step * up
+    centres = []
+    for k in range(2 * h):
+        c = start + k * up
         if not (0 <= c[0] < w and 0 <= c[1] < h) or not mask[int(c[1]), int(c[0])]:
-            return None, 0.0
-        band = c + offsets[:, None] * across
-        share = float(np.mean(_not_skin(image, band, *skin)))
-        if share >= 0.6:
-            if run == 0:
-                first = c
-            run += 1
-            if run >= need:
-                return first, share
-        else:
-            run = 0
-    return None, 0.0
+            break
+        centres.append(c)
+    if not centres:
+        return None, 0.0
+    k, share = hairline_on(lab, np.array(centres), across, half_width, skin, hair, scale)
+    return (None, 0.0) if k is None else (centres[k], share)
 
 
 def _midline(lm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -159,52 +153,145 @@ def _yaw_asymmetry(lm: np.ndarray) -> float:
     return float((left - right) / max(left + right, 1e-9))
 
 
-def _ears(front: ViewPoints, image_w: int, lm: np.ndarray, up: np.ndarray) -> None:
-    """10.x on a front photo: the rows where each ear stands out of the head's outline.
+def ear_from_outline(mask: np.ndarray, sign: float, centre_x: float, top_band: tuple[float, float],
+                     lowest: float, ipd: float) -> dict | None:
+    """An ear standing out of a front silhouette's outline, or None.
 
-    In a front photo the ears show as two bumps on the outline between the brows and the
-    mouth. The top and bottom rows of a bump give the heights of the ear's top (10.1, 10.9)
-    and of its lobe (10.5, 10.7); the points themselves sit on the head's outline where the
-    ear meets it (the outline above and below the bump, joined straight across).
+    Seen from the front an ear is a bump on the head's outline: the outline steps out at
+    the top of the ear (the rim leaves the head), bulges, and steps back in under the lobe.
+    The steepest step out within ``top_band`` rows and the steepest step back in below it
+    (0.45–1.5 IPD lower, above ``lowest``) bound the ear; the head's own outline runs
+    straight from above the one to below the other, and the ear is what lies outside it.
+
+    Parameters
+    ----------
+    mask : (H, W) bool
+        The head's silhouette.
+    sign : {+1, -1}
+        +1 for the ear on the image's right (the face's left), -1 for the other.
+    centre_x : float
+        Column of the face's midline.
+    top_band : (float, float)
+        Rows where the top of the ear may be.
+    lowest : float
+        Lowest row the lobe may reach.
+    ipd : float
+        Distance between the pupils, pixels.
+
+    Returns
+    -------
+    dict or None
+        ``top``, ``lobe`` (the highest and lowest pixel of the ear), ``upper_join``,
+        ``lower_join`` (where the ear meets the head's line near them), each (2,) x, y;
+        ``region`` (H, W) bool, the ear's pixels; ``bulge``, how far it stands out, pixels.
     """
+    from scipy import ndimage as ndi
+
+    h, w = mask.shape
+    left, right = row_extents(mask)
+    out = sign * ((right if sign > 0 else left) - centre_x)  # outward reach per row
+    m = max(2, int(round(0.04 * ipd)))
+    a, b = int(max(m, top_band[0])), int(min(h - 2 * m - 1, top_band[1]))
+    if b <= a:
+        return None
+    step_out = out[a + m:b + m] - out[a - m:b - m]
+    if not np.isfinite(step_out).any():
+        return None
+    k = int(np.nanargmax(step_out))
+    if step_out[k] < 0.05 * ipd:
+        return None
+    y_top = a + k
+    lo, hi = int(y_top + 0.45 * ipd), int(min(h - m - 1, y_top + 1.5 * ipd, lowest))
+    if hi <= lo:
+        return None
+    step_in = out[lo - m:hi - m] - out[lo + m:hi + m]
+    if not np.isfinite(step_in).any():
+        return None
+    k = int(np.nanargmax(step_in))
+    if step_in[k] < 0.04 * ipd:
+        return None
+    y_bottom = lo + k
+    # The head's line: the outline just above the ear and just below the lobe.
+    ya, yb = y_top - m, y_bottom + m
+    xa, xb = out[ya], out[yb]
+    if not (np.isfinite(xa) and np.isfinite(xb)):
+        return None
+    yy, xx = np.mgrid[ya:yb + 1, 0:w]
+    reach = sign * (xx - centre_x)
+    line = xa + (yy - ya) / max(yb - ya, 1) * (xb - xa)
+    region = np.zeros((h, w), bool)
+    region[ya:yb + 1] = mask[ya:yb + 1] & (reach > line + 0.02 * ipd)
+    lab, n = ndi.label(region)
+    if n == 0:
+        return None
+    sizes = np.bincount(lab.ravel())
+    sizes[0] = 0
+    region = lab == np.argmax(sizes)
+    ys, xs = np.nonzero(region)
+    bulge = float(np.max(sign * (xs - centre_x) - (xa + (ys - ya) / max(yb - ya, 1) * (xb - xa))))
+    if bulge < 0.06 * ipd or np.ptp(ys) < 0.4 * ipd:
+        return None
+    t, bot = ys.min(), ys.max()
+    band = max(1, int(0.03 * ipd))
+
+    def outer(sel):  # the ear's pixel furthest out among those selected
+        j = np.flatnonzero(sel)
+        j = j[np.argmax(sign * xs[j])]
+        return np.array([xs[j], ys[j]], float)
+
+    def join(y):  # the ear's innermost pixel in row y: where it meets the head
+        y = int(np.clip(round(y), t, bot))
+        row = xs[ys == y]
+        if len(row) == 0:
+            return np.array([centre_x + sign * (xa + (y - ya) / max(yb - ya, 1) * (xb - xa)), y], float)
+        return np.array([row[np.argmin(sign * row)], y], float)
+
+    top_pt = outer(ys <= t + band)
+    lobe = np.array([np.median(xs[ys >= bot - band]), bot], float)
+    # The joins: the ear's front edge just below its top, and about 5 mm above the lobe's
+    # bottom (where the lobe hangs free of the cheek).
+    return {"top": top_pt, "lobe": lobe, "upper_join": join(t + band), "lower_join": join(bot - 0.085 * ipd),
+            "region": region, "bulge": bulge}
+
+
+def _ears(front: ViewPoints, lab: np.ndarray, lm: np.ndarray, pts: dict, skin: ColourModel,
+          hair: ColourModel | None) -> None:
+    """10.x on a front photo: the ears where they stand out of the head's outline
+    (:func:`ear_from_outline`) and are skin-coloured (not a tuft of hair); where they do
+    not, the classic proportions (the ear from the brows' height to the nose's base)."""
     mask, ipd = front.mask, front.ipd_px
-    left_x, right_x = row_extents(mask)
-    y_brow = min(lm[105, 1], lm[334, 1])
-    y_mouth = 0.5 * (lm[0, 1] + lm[17, 1])
-    rows = np.arange(max(0, int(y_brow - 0.4 * ipd)), min(mask.shape[0], int(y_mouth + 0.2 * ipd)))
+    centre_x = float(lm[_NASION, 0])
+    y_brow = min(pts["4.3"][1], pts["4.4"][1])
+    y_eye = 0.5 * (pts["3.5"][1] + pts["3.6"][1])
+    y_mouth = 0.5 * (pts["8.1"][1] + pts["8.2"][1])
     front.extras["ears"] = {}
-    for side, extent, oval, sign in (("L", right_x, _OVAL_LEFT, 1.0), ("R", left_x, _OVAL_RIGHT, -1.0)):
-        ov = lm[list(oval), :2]
-        order = np.argsort(ov[:, 1])
-        face_edge = np.interp(rows, ov[order, 1], ov[order, 0])
-        stick_out = sign * (extent[rows] - face_edge)
-        ear = np.nan_to_num(stick_out, nan=0.0) > 0.06 * ipd
+    for side, sign in (("L", 1.0), ("R", -1.0)):
         ids = {"L": ("10.1", "10.9", "10.5", "10.7"), "R": ("10.2", "10.10", "10.6", "10.8")}[side]
-        runs = _runs(ear)
-        if runs:
-            a, b = max(runs, key=lambda r: r[1] - r[0])
-        if runs and (b - a) > 0.25 * ipd:
-            top, bottom = rows[a], rows[b - 1]
-            conf, src = 0.55, "silhouette"
-        else:  # hidden by hair or flat to the head: the classic proportions
-            top = 0.5 * (lm[105 if side == "R" else 334, 1] + lm[33 if side == "R" else 263, 1])
-            bottom = lm[2, 1]
-            conf, src = 0.2, "rule"
-        # The outline above and below the ear, joined straight across the ear's rows.
-        above = int(np.clip(top - 0.08 * ipd, 0, mask.shape[0] - 1))
-        below = int(np.clip(bottom + 0.08 * ipd, 0, mask.shape[0] - 1))
-        xa, xb = extent[above], extent[below]
-        if not (np.isfinite(xa) and np.isfinite(xb)):
+        ear = ear_from_outline(mask, sign, centre_x, (y_brow - 0.4 * ipd, y_eye + 0.4 * ipd),
+                               y_mouth + 0.6 * ipd, ipd)
+        if ear is not None:
+            ys, xs = np.nonzero(ear["region"])
+            pick = np.linspace(0, len(ys) - 1, min(len(ys), 400)).astype(int)
+            if hair_share(lab_at(lab, np.c_[xs[pick], ys[pick]]), skin, hair) > 0.5:
+                ear = None
+        if ear is not None:
+            conf = float(np.clip(0.4 + ear["bulge"] / ipd, 0.4, 0.7))
+            for fp, key in zip(ids, ("top", "upper_join", "lobe", "lower_join")):
+                front.put(fp, ear[key], conf, "silhouette")
+            front.extras["ears"][side] = (float(ear["top"][1]), float(ear["lobe"][1]), "silhouette")
             continue
-
-        def edge(y):
-            t = (y - above) / max(below - above, 1)
-            return xa + t * (xb - xa) - sign * 0.02 * ipd
-
-        join = 0.12 * (bottom - top)
-        for fp, y in zip(ids, (top, top + join, bottom, bottom - join)):
-            front.put(fp, (edge(y), y), conf, src)
-        front.extras["ears"][side] = (float(top), float(bottom), src)
+        # Hidden by hair or flat to the head: from the height of the brows to the nose's base,
+        # on the head's outline (the face mesh's edge at those heights, a little outside it).
+        top = 0.5 * (pts["4.3" if side == "L" else "4.4"][1] + y_eye)
+        bottom = pts["9.15"][1]
+        left_x, right_x = row_extents(mask)
+        extent = right_x if sign > 0 else left_x
+        for fp, y in zip(ids, (top, top + 0.1 * ipd, bottom, bottom - 0.1 * ipd)):
+            r = int(np.clip(round(y), 0, mask.shape[0] - 1))
+            x = extent[r] if np.isfinite(extent[r]) else centre_x + sign * 1.1 * ipd
+            inset = 0.0 if fp in ("10.1", "10.2", "10.5", "10.6") else 0.08 * ipd
+            front.put(fp, (x - sign * inset, y), 0.2, "rule")
+        front.extras["ears"][side] = (float(top), float(bottom), "rule")
 
 
 def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
@@ -268,26 +355,35 @@ def detect_front(image: np.ndarray, where: str = "front photo") -> ViewPoints:
     top = _leave(front.mask, base, up)
     front.put("11.5", top, 0.8, "silhouette")
     # Hairline: skin colour up the forehead's midline and above the eyebrows' outer ends.
-    r = max(2, int(0.03 * ipd))
-    skin = skin_model(image, lm[list(_FOREHEAD + _CHEEKS), :2], r)
-    start = lm[151, :2]
-    hair, strength = hairline_along(image, front.mask, start, up, 0.08 * ipd, skin)
+    lab = to_lab(image)
+    skin, hair_model = skin_and_hair(lab, front.mask, lm, top, up, ipd)
+    # From between the eyebrows up the midline (a fringe may hide the forehead's middle).
+    hair, strength = hairline_along(lab, front.mask, lm[9, :2], up, 0.08 * ipd, skin, hair_model, 0.08 * ipd)
     if hair is not None:
         front.put("11.1", hair, 0.45 + 0.4 * strength, "silhouette")
     else:  # no hair on the forehead: as high above the brows as the nose base is below them
         glabella = 0.5 * (pts["4.1"] + pts["4.2"])
         front.put("11.1", glabella + (glabella - pts["9.15"]), 0.25, "rule")
+    across = np.array([-up[1], up[0]])
     for fp, brow in (("11.3", "4.5"), ("11.2", "4.6")):
-        # From above the eyebrow (its top, 4.3/4.4, is higher than its outer end).
-        above = pts[brow] + ((pts[{"4.5": "4.3", "4.6": "4.4"}[brow]] - pts[brow]) @ up + 0.15 * ipd) * up
-        found, strength = hairline_along(image, front.mask, above, up, 0.05 * ipd, skin)
+        # From just above the eyebrow's top (4.3/4.4, higher than its outer end 4.5/4.6).
+        above = pts[brow] + ((pts[{"4.5": "4.3", "4.6": "4.4"}[brow]] - pts[brow]) @ up + 0.12 * ipd) * up
+        band = above + np.linspace(-0.05, 0.05, 9)[:, None] * ipd * across
+        colours = lab_at(lab, band)
+        fringe = hair_share(colours, skin, hair_model) > 0.6 and (
+            hair_model is None or np.median(hair_model.distance2(colours)) < 0.5 * FAR)
+        if fringe:  # hair down to the brows
+            front.put(fp, above, 0.35, "silhouette")
+            continue
+        found, strength = hairline_along(lab, front.mask, above, up, 0.05 * ipd, skin, hair_model, 0.08 * ipd)
         if found is not None:
             front.put(fp, found, 0.4 + 0.4 * strength, "silhouette")
         else:
             front.put(fp, pts[brow] + (front.points["11.1"] - glabella_of(pts)) @ up * up, 0.2, "rule")
     # Top of the skull: under the hair, whose thickness a photo does not show.
     front.put("11.4", top, 0.35, "rule")
-    _ears(front, w, lm, up)
+    front.extras["colours"] = (skin, hair_model)
+    _ears(front, lab, lm, pts, skin, hair_model)
     return front
 
 

@@ -1,4 +1,4 @@
-"""Face-mesh landmarks → MPEG-4 feature points, by a table stored as data.
+"""Face-mesh landmarks → MPEG-4 feature points, by tables stored as data.
 
 Each feature point the face mesh covers is a fixed affine combination of three of its
 landmarks, ``fp = w0 * L[a] + w1 * L[b] + w2 * L[c]`` with ``w0 + w1 + w2 = 1`` (barycentric
@@ -8,6 +8,10 @@ way the project binds feature points to a mesh. The table,
 weights were fitted by ``scripts/build_facemesh_map.py`` to synthetic photos of ICT FaceKit
 identities (seeds disjoint from the benchmark's), so that the points land where this
 project's generic head defines them.
+
+A second table, ``recon/data/facemesh_side.csv``, has the same form over the landmarks'
+depth and height: the points of a side photo, which :mod:`recon.landmarks.side` carries
+there through the profile fit (:mod:`recon.landmarks.profile`).
 """
 
 from __future__ import annotations
@@ -24,10 +28,12 @@ from mpeg4.catalogue import FEATURE_POINTS
 
 from .models import N_LANDMARKS
 
-__all__ = ["MAP_FILE", "FpMapping", "load_mapping", "apply_mapping", "write_mapping"]
+__all__ = ["MAP_FILE", "SIDE_MAP_FILE", "FpMapping", "load_mapping", "apply_mapping", "write_mapping"]
 
-#: The table inside the package.
+#: The front photo's table inside the package (over the landmarks' pixels).
 MAP_FILE = "data/facemesh_mpeg4.csv"
+#: The side photo's table (over the landmarks' depth and height).
+SIDE_MAP_FILE = "data/facemesh_side.csv"
 _COLUMNS = ["fp", "landmarks", "weights", "fit_error_pct", "anatomy"]
 
 
@@ -81,9 +87,14 @@ def _parse(text: str, where: str) -> dict[str, FpMapping]:
     return out
 
 
-@functools.lru_cache(maxsize=1)
-def load_mapping() -> dict[str, FpMapping]:
-    """The shipped table: FP id → :class:`FpMapping`.
+@functools.lru_cache(maxsize=2)
+def load_mapping(table: str = MAP_FILE) -> dict[str, FpMapping]:
+    """A shipped table: FP id → :class:`FpMapping`.
+
+    Parameters
+    ----------
+    table : str
+        :data:`MAP_FILE` (the front photo's) or :data:`SIDE_MAP_FILE`.
 
     Examples
     --------
@@ -93,8 +104,8 @@ def load_mapping() -> dict[str, FpMapping]:
     >>> round(sum(m["8.1"].weights), 9)
     1.0
     """
-    text = resources.files("recon").joinpath(MAP_FILE).read_text(encoding="utf-8")
-    return _parse(text, f"recon/{MAP_FILE}")
+    text = resources.files("recon").joinpath(table).read_text(encoding="utf-8")
+    return _parse(text, f"recon/{table}")
 
 
 def apply_mapping(landmarks: np.ndarray, mapping: dict[str, FpMapping] | None = None) -> dict[str, np.ndarray]:
@@ -103,7 +114,8 @@ def apply_mapping(landmarks: np.ndarray, mapping: dict[str, FpMapping] | None = 
     Parameters
     ----------
     landmarks : (478, D) float
-        Face mesh landmarks (D = 2 or 3: pixels, and relative depth).
+        Face mesh landmarks (D = 2 or 3: pixels, and relative depth; for the side table,
+        depth and height).
     mapping : dict, optional
         :func:`load_mapping` by default.
 

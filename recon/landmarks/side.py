@@ -5,16 +5,19 @@ curves, the face's profile and the back of the head. The photo is turned, if nee
 that the nose points to the image's left (the face's nose is the sharpest bump either
 curve has). Then:
 
-- heights: a point both photos show is at the same height in both, up to the photos'
-  scales and framing; the top of the head and the tip of the nose, found in both,
-  give that map (``y_side = s * y_front + t``) and every height the front photo has is
-  carried across;
-- on the profile (``P`` in the catalogue): the curve at the point's height, the nose tip,
-  the point under the nose and the lips refined to the curve's own extremes, the back of
-  the skull where the back curve reaches furthest, the top where the silhouette begins;
-- off the profile (eye and mouth corners, nose wing, jaw angle, ear): the generic head's
-  side layout, fitted to the points found on the profile (a similarity for the face, a
-  stretch in depth and height for the ear and jaw), at the heights from the front.
+- the front photo's face mesh is laid onto the profile (:func:`recon.landmarks.profile.fit_profile`):
+  its midline landmarks drawn onto the silhouette's outline by a similarity. The fit
+  carries the landmarks' depth and height (the height the front photo gives) into the side
+  photo, and with them every feature point, by the side table
+  (:mod:`recon.landmarks.mapping`, ``recon/data/facemesh_side.csv``), for either side;
+- the face mesh's depth is its weakest part, off by a few millimetres for a whole eye, a
+  mouth or an ear at a time: where the photo shows them (:mod:`recon.landmarks.side_parts`:
+  the white of the eye, the lips, the ear's outline), their points move onto them, and the
+  points around them by the share of their depth behind the profile;
+- the points on the profile (``P`` in the catalogue) go onto the silhouette's outline,
+  the nearest place of it; the hairline is where the forehead, just inside the outline,
+  turns from skin to hair; the top of the head is the silhouette's top, the back of the
+  skull on the back curve as far down as the generic head has it.
 """
 
 from __future__ import annotations
@@ -25,16 +28,12 @@ from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.errors import InputError
 
 from .front import ViewPoints
+from .mapping import SIDE_MAP_FILE, apply_mapping, load_mapping
 from .models import face_landmarks
+from .profile import ProfileFit, fit_profile, outline_distance
 from .silhouette import head_mask, row_extents
 
-__all__ = ["facing_of", "detect_side"]
-
-#: Points on the profile whose height the front photo gives and whose depth is the curve's.
-_ON_PROFILE = ("11.1", "9.12", "9.15", "8.1", "2.2", "2.3", "8.2", "2.10", "2.1")
-#: Anchors of the face's layout fit, and of the head's (ear, jaw, back).
-_FACE_ANCHORS = ("9.12", "9.3", "9.15", "8.1", "8.2", "2.10", "2.1")
-_HEAD_ANCHORS = ("11.4", "11.6", "9.3", "2.1")
+__all__ = ["facing_of", "detect_side", "register_profile"]
 
 
 def _bumpiness(curve: np.ndarray, scale: int) -> float:
@@ -80,43 +79,6 @@ def facing_of(mask: np.ndarray) -> str:
     return "left" if lb >= rb else "right"
 
 
-def _extreme(curve: np.ndarray, lo: float, hi: float, kind: str) -> int | None:
-    """Row of the curve's min (``"out"``, most forward) or max (``"in"``) between rows."""
-    a, b = int(max(0, np.floor(min(lo, hi)))), int(min(len(curve) - 1, np.ceil(max(lo, hi))))
-    seg = curve[a:b + 1]
-    if not np.isfinite(seg).any():
-        return None
-    k = np.nanargmin(seg) if kind == "out" else np.nanargmax(seg)
-    return a + int(k)
-
-
-def _profile_hairline(image: np.ndarray, prof: np.ndarray, start: int, stop: int, ipd: float):
-    """First row above ``start`` (the nose bridge) where the pixels just inside the profile
-    are no longer the colour of the skin below; None when they stay skin to ``stop``."""
-    from .front import _not_skin, skin_model
-
-    inset = 0.06 * ipd
-    rows = np.arange(start - int(0.5 * ipd), stop, -1)
-    rows = rows[np.isfinite(prof[rows])]
-    if len(rows) < 10:
-        return None
-    # Skin: the forehead between the bridge and a little above the brows.
-    seed = rows[: max(3, int(0.3 * ipd))]
-    skin = skin_model(image, np.c_[prof[seed] + inset, seed], max(1, int(0.02 * ipd)))
-    need = max(3, int(0.04 * ipd))
-    run = 0
-    for r in rows:
-        band = np.c_[prof[r] + inset * np.array([0.6, 1.0, 1.4, 1.8]), np.full(4, r)]
-        if np.mean(_not_skin(image, band, *skin)) >= 0.75:
-            run += 1
-            if run >= need:
-                r0 = r + need - 1
-                return np.array([prof[r0], float(r0)])
-        else:
-            run = 0
-    return None
-
-
 def _apex(mask: np.ndarray, y_top: float, depth: float) -> float:
     """Column of the top of a silhouette: the vertex of a parabola fitted to its upper edge
     over the top ``depth`` rows (a flat crown has no single highest pixel)."""
@@ -132,39 +94,8 @@ def _apex(mask: np.ndarray, y_top: float, depth: float) -> float:
     return float(np.clip(-b / (2 * a), x.min(), x.max()))
 
 
-def _axis_fit(src: np.ndarray, dst: np.ndarray):
-    """x' = a x + c, y' = b y + d by least squares (a stretch in depth and in height)."""
-    ax = np.polyfit(src[:, 0], dst[:, 0], 1)
-    ay = np.polyfit(src[:, 1], dst[:, 1], 1)
-    return lambda p: np.c_[np.polyval(ax, p[:, 0]), np.polyval(ay, p[:, 1])]
-
-
-def detect_side(image: np.ndarray, front: ViewPoints, front_height: int, where: str = "side photo",
-                layout: dict | None = None) -> tuple[ViewPoints, str]:
-    """Feature points on a profile photo (see the module docstring).
-
-    Parameters
-    ----------
-    image : (H, W, 3) uint8
-        RGB profile photo, facing either way.
-    front : ViewPoints
-        :func:`recon.landmarks.front.detect_front` of the same person's front photo.
-    front_height : int
-        The front photo's height in pixels.
-    where : str
-        The photo's name, for messages.
-    layout : dict, optional
-        :func:`recon.annotate.placement.generic_layout` (the generic head's by default).
-
-    Returns
-    -------
-    points : ViewPoints
-        The points of the side the photo shows, each with a confidence and a source.
-    side : {"L", "R"}
-        The face's side the photo shows (``"L"`` when the nose points to the image's left).
-    """
-    from recon.annotate.placement import fit_view, generic_layout, shown_in
-
+def _oriented(image: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray, bool]:
+    """The side photo turned nose-left, its silhouette, and whether it was flipped."""
     h, w = image.shape[:2]
     faces = face_landmarks(image)
     if faces:
@@ -179,110 +110,255 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int, where: 
     if mask.sum() < 0.01 * h * w:
         raise InputError("no head found in the side photo (the person could not be told from the background)",
                          where=where, fix="photograph the profile against a plain, contrasting background")
-    facing = facing_of(mask)
-    flip = facing == "right"
+    flip = facing_of(mask) == "right"
     if flip:
         # Everything below works on the photo turned nose-left; segmenting it again there
         # (rather than mirroring this mask) makes a mirrored photo give exactly mirrored points.
         image = np.ascontiguousarray(image[:, ::-1])
         mask = head_mask(image)
+    return image, mask, flip
+
+
+def register_profile(image: np.ndarray, front: ViewPoints, front_height: int,
+                     where: str = "side photo") -> tuple[ProfileFit, dict]:
+    """The front photo's face mesh laid onto a side photo's profile.
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8
+        RGB profile photo, facing either way.
+    front : ViewPoints
+        :func:`recon.landmarks.front.detect_front` of the same person's front photo.
+    front_height : int
+        The front photo's height in pixels.
+    where : str
+        The photo's name, for messages.
+
+    Returns
+    -------
+    fit : ProfileFit
+        Face mesh (depth, height) → pixels of the photo turned nose-left.
+    context : dict
+        ``image`` and ``mask`` turned nose-left, ``flipped`` (bool), ``distance`` (the
+        outline's distance map).
+    """
+    image, mask, flip = _oriented(image, where)
+    dist = outline_distance(mask)
+    try:
+        fit = fit_profile(mask, front.extras["landmarks"], front.points["11.5"][1], front.ipd_px,
+                          image.shape[0] / front_height, dist)
+    except ValueError:
+        raise InputError("the side photo's silhouette has no profile", where=where,
+                         fix="give a profile photo showing the whole head, from the top of the hair to the chin") from None
+    return fit, {"image": image, "mask": mask, "flipped": flip, "distance": dist}
+
+
+#: An ear is taken as found when the gradient along its outline is this many times the
+#: window's median.
+EAR_CONTRAST = 1.5
+#: Points on the profile (the catalogue's ``P`` in the side view) that the face mesh's
+#: table puts near it.
+_ON_PROFILE = ("9.12", "9.3", "9.15", "8.1", "8.2", "2.10", "2.1", "11.1")
+#: Points off the profile that move with the eye, and with the mouth, when either is seen
+#: (the left side's ids).
+_EYE = ("3.1", "3.3", "3.5", "3.7", "3.9", "4.5")
+_AROUND_EYE = ("3.13", "4.3", "5.3")
+_MOUTH = ("8.3", "8.5", "8.7", "2.4")
+_JAW = ("2.13",)
+
+
+def _back_share() -> float:
+    """How far down the back of the skull (11.6) is on the generic head, as a share of the
+    height from the top of the head (11.4) to under the nose (9.15)."""
+    from recon.annotate.placement import generic_layout
+
+    side = generic_layout()["side"]
+    return float((side["11.6"][1] - side["11.4"][1]) / (side["9.15"][1] - side["11.4"][1]))
+
+
+def _own(fp: str, side: str) -> str:
+    """The id of a left-side point on the side a photo shows."""
+    f = FEATURE_POINTS[fp]
+    return f.mirror if side == "R" and f.side == "L" else fp
+
+
+def _side_colours(lab: np.ndarray, mask: np.ndarray, cheek: np.ndarray, y_top: float, ipd: float):
+    """Skin (the cheek) and hair (the crown) colour models of a side photo."""
+    from .colour import FAR, ColourModel, sample_patches
+
+    r = max(2, int(0.03 * ipd))
+    skin = ColourModel.fit(sample_patches(lab, cheek, r, mask))
+    row = int(min(mask.shape[0] - 1, y_top + 0.15 * ipd))
+    cols = np.flatnonzero(mask[row])
+    if len(cols) == 0:
+        return skin, None
+    crown = [(cols.mean() + dx * ipd, y_top + dy * ipd) for dx in (-0.3, 0.0, 0.3) for dy in (0.1, 0.2)]
+    lab_c = sample_patches(lab, np.array(crown), r, mask)
+    if len(lab_c) < 10 or np.median(skin.distance2(lab_c)) < 0.4 * FAR:
+        return skin, None
+    return skin, ColourModel.fit(lab_c)
+
+
+def _generic_ear(where: dict[str, np.ndarray], ipd: float) -> dict[str, np.ndarray]:
+    """The generic head's ear outline (:data:`~recon.landmarks.side_parts.EAR_OUTLINE`)
+    as a side photo nose-left shows it, ``ipd`` pixels between the pupils, centred where
+    ``where``'s points are."""
+    from recon.annotate.placement import generic_layout
+
+    layout = generic_layout()
+    g_ipd = float(np.linalg.norm(layout["front"]["3.5"] - layout["front"]["3.6"]))
+    ids = list(where)
+    g = np.array([layout["side"][i] for i in ids]) * (ipd / g_ipd)
+    g += np.mean([where[i] for i in ids], axis=0) - g.mean(axis=0)
+    return dict(zip(ids, g))
+
+
+def _shift(points: dict, ids, anchor_pred: np.ndarray, anchor_found: np.ndarray) -> None:
+    """Move ``ids`` in depth by what the anchor moved."""
+    dx = anchor_found[0] - anchor_pred[0]
+    for fp in ids:
+        if fp in points:
+            points[fp] = points[fp] + [dx, 0.0]
+
+
+def _stretch(points: dict, ids, prof: np.ndarray, anchor_pred: np.ndarray, anchor_found: np.ndarray) -> float:
+    """Stretch the depth behind the profile of ``ids`` so that the anchor lands where it was
+    found; returns the factor (1 when it cannot be told)."""
+    r = int(np.clip(round(anchor_pred[1]), 0, len(prof) - 1))
+    ref = prof[r]
+    if not np.isfinite(ref) or abs(anchor_pred[0] - ref) < 1.0:
+        return 1.0
+    k = float(np.clip((anchor_found[0] - ref) / (anchor_pred[0] - ref), 0.5, 2.0))
+    for fp in ids:
+        if fp in points:
+            p = points[fp]
+            points[fp] = np.array([ref + k * (p[0] - ref), p[1]])
+    return k
+
+
+def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
+                where: str = "side photo") -> tuple[ViewPoints, str]:
+    """Feature points on a profile photo (see the module docstring).
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8
+        RGB profile photo, facing either way.
+    front : ViewPoints
+        :func:`recon.landmarks.front.detect_front` of the same person's front photo.
+    front_height : int
+        The front photo's height in pixels.
+    where : str
+        The photo's name, for messages.
+
+    Returns
+    -------
+    points : ViewPoints
+        The points of the side the photo shows, each with a confidence and a source.
+    side : {"L", "R"}
+        The face's side the photo shows (``"L"`` when the nose points to the image's left).
+    """
+    from recon.annotate.placement import shown_in
+
+    from .colour import hairline_on, to_lab
+    from .side_parts import EAR_OUTLINE, ear_box, eye_white, lip_region
+
+    h, w = image.shape[:2]
+    fit, ctx = register_profile(image, front, front_height, where)
+    image, mask, flip = ctx["image"], ctx["mask"], ctx["flipped"]
     side = "R" if flip else "L"
     out = ViewPoints(mask=mask)
+    ipd = fit.scale * front.ipd_px
+    out.ipd_px = ipd
+    out.extras.update(profile_fit=fit, facing="right" if flip else "left")
+    lm = front.extras["landmarks"]
+    table = load_mapping(SIDE_MAP_FILE)
+    depth_height = apply_mapping(lm[:, [2, 1]], table)
+    pts = {fp: fit.apply(zy[None])[0] for fp, zy in depth_height.items()}
+    # How well the mesh lies on the profile: a fit off by a tenth of the IPD is worth little.
+    quality = float(np.clip(1.0 - fit.cost / (0.1 * ipd), 0.2, 1.0)) * min(1.0, front.ipd_px / 60.0)
+    conf = {fp: quality * (0.75 - 0.04 * table[fp].fit_error_pct) for fp in pts}
     prof, back = row_extents(mask)
     rows = np.flatnonzero(np.isfinite(prof))
     y_top = float(rows[0])
+    lab = to_lab(image)
+    own = {fp: _own(fp, side) for fp in _EYE + _AROUND_EYE + _MOUTH + _JAW + EAR_OUTLINE + ("5.1",)}
+    # The eye and the mouth, seen: their points move with them, the depth behind the profile
+    # stretched (the face mesh's depth is off by a share, more for what lies deeper).
+    eye = eye_white(lab, mask, 0.5 * (pts[own["3.5"]] + pts[own["3.7"]]), ipd)
+    if eye is not None:
+        # The eye's own points move with it; those around it (lid fold, brow, cheekbone) by
+        # the share of their depth behind the profile.
+        anchor = pts[own["3.7"]].copy()
+        _stretch(pts, [own[i] for i in _AROUND_EYE], prof, anchor, eye["back"])
+        _shift(pts, [own[i] for i in _EYE], anchor, eye["back"])
+        pts[own["3.7"]] = eye["back"]
+        for fp in _EYE + _AROUND_EYE:
+            conf[own[fp]] = min(0.8, conf[own[fp]] + 0.15)
+    lips = lip_region(lab, mask, pts[own["8.3"]], ipd)
+    if lips is not None:
+        _stretch(pts, [own[i] for i in _MOUTH], prof, pts[own["8.3"]], lips["corner"])
+        pts[own["8.3"]] = lips["corner"]
+        for fp in _MOUTH:
+            conf[own[fp]] = min(0.8, conf[own[fp]] + 0.15)
+    # The ear: its outline slid onto the strongest edges near where the mesh puts it.
+    skin, hair = _side_colours(lab, mask, np.array([pts[own["5.3"]], pts[own["5.1"]]]), y_top, ipd)
+    # The ear's shape is the generic head's, at the person's scale, where the table puts it
+    # (the table's own ear, an average, comes out smaller than any one ear).
+    expected = _generic_ear({i: pts[own[i]] for i in EAR_OUTLINE}, ipd)
+    ear = ear_box(lab, mask, expected, ipd, skin, hair)
+    if ear is not None and ear["contrast"] <= EAR_CONTRAST:
+        ear = None
+    if ear is not None:
+        before = np.mean([pts[own[i]] for i in EAR_OUTLINE], axis=0)
+        after = np.mean([ear[i] for i in EAR_OUTLINE], axis=0)
+        # The jaw's angle, below the ear, is as far off in depth as the ear was.
+        _stretch(pts, [own[i] for i in _JAW], prof, before, after)
+        for i in EAR_OUTLINE:
+            pts[own[i]] = ear[i]
+            conf[own[i]] = 0.5
+    # The hairline on the profile: where the forehead, just inside the silhouette, turns
+    # from skin to hair going up from above the eyebrows.
+    brow = _own("4.3", side)
+    if brow in pts:
+        r0 = int(np.clip(round(pts[brow][1] - 0.1 * ipd), rows[0], rows[-1]))
+        path = np.arange(r0, int(y_top), -1)
+        path = path[np.isfinite(prof[path])]
+        if len(path) > 10:
+            centres = np.c_[prof[path] + 0.05 * ipd, path]
+            k, strength = hairline_on(lab, centres, (1.0, 0.0), 0.03 * ipd, skin, hair, 0.08 * ipd)
+            if k is not None:
+                pts["11.1"] = np.array([prof[path[k]], float(path[k])])
+                conf["11.1"] = 0.4 + 0.3 * strength
+    # Points on the profile: onto the silhouette's outline, the nearest place of it.
+    outline = np.argwhere(ctx["distance"] < 0.75)[:, ::-1].astype(float)
+    if len(outline):
+        from scipy.spatial import cKDTree
 
-    def fy(fp):  # the front's height of the point the side photo shows (its own side)
-        f = FEATURE_POINTS[fp]
-        key = f.mirror if (flip and f.side != "C") else fp
-        return front.points[key][1] if key in front.points else None
-
-    # Heights: the top of the head and the point under the nose, in both photos. The nose
-    # tip (the curve's most forward point) leads to the latter: the deepest point of the
-    # curve just below it.
-    ipd_f = front.ipd_px
-    s0 = h / front_height
-    top_f = front.points["11.5"][1]
-    guess = y_top + s0 * (fy("9.3") - top_f)
-    k = _extreme(prof, guess - 0.6 * s0 * ipd_f, guess + 0.6 * s0 * ipd_f, "out")
-    if k is None:
-        raise InputError("the side photo's silhouette has no profile where the nose should be", where=where,
-                         fix="give a profile photo showing the whole head, from the top of the hair to the chin")
-    k2 = _extreme(prof, k + 1, k + 0.3 * s0 * ipd_f, "in")
-    s = s0 if k2 is None else (k2 - y_top) / max(fy("9.15") - top_f, 1e-9)
-    if not 0.5 * s0 < s < 2.0 * s0:  # what was found is not the nose: keep the photos' own scales
-        s, k2 = s0, None
-    t = y_top - s * top_f
-
-    def to_side(y):
-        return s * y + t
-
-    ipd = s * ipd_f
-    out.ipd_px = ipd
-    out.extras.update(scale=s, offset=t, facing=facing)
+        tree = cKDTree(outline)
+        for fp in _ON_PROFILE:
+            if fp in pts:
+                d, j = tree.query(pts[fp])
+                if d < 0.15 * ipd:
+                    pts[fp] = outline[j]
+    for fp in shown_in("side", side):
+        if fp in pts:
+            out.put(fp, pts[fp], conf[fp], "silhouette")
     # The top: the apex of a parabola through the silhouette's upper edge.
     top_x = _apex(mask, y_top, 0.12 * ipd)
     out.put("11.5", (top_x, y_top - 0.5), 0.75, "silhouette")
     out.put("11.4", (top_x, y_top - 0.5), 0.45, "rule")
-    # The profile at the front's heights.
-    for fp in ("9.3",) + _ON_PROFILE:
-        y = fy(fp)
-        if y is None:
-            continue
-        r = int(np.clip(round(to_side(y)), rows[0], rows[-1]))
-        if np.isfinite(prof[r]):
-            out.put(fp, (prof[r], r), 0.6 * front.confidence.get(fp, 0.5) + 0.3, "silhouette")
-    if k2 is not None:
-        out.put("9.15", (prof[k2], k2), 0.75, "silhouette")
-    # The chin's lowest point: where the chin turns under, the silhouette's furthest point
-    # down and forward near the front's height (the curve is level there, so a height alone
-    # does not fix it).
-    if fy("2.1") is not None and "2.10" in out.points:
-        y1 = to_side(fy("2.1"))
-        x0 = out.points["2.10"][0]
-        win = mask[int(max(0, y1 - 0.25 * ipd)):int(min(h, y1 + 0.25 * ipd)), int(max(0, x0 - 0.1 * ipd)):int(min(w, x0 + 0.6 * ipd))]
-        yy, xx = np.nonzero(win)
-        if len(yy):
-            j = np.argmax(yy - xx)
-            out.put("2.1", (xx[j] + int(max(0, x0 - 0.1 * ipd)), yy[j] + int(max(0, y1 - 0.25 * ipd))), 0.6, "silhouette")
-    # The hairline on the profile: where the forehead stops being skin-coloured going up,
-    # just inside the silhouette (the side photo's own skin, sampled on the forehead).
-    if "9.12" in out.points:
-        found = _profile_hairline(image, prof, int(out.points["9.12"][1]),
-                                  int(y_top), ipd)
-        if found is not None:
-            out.put("11.1", found, 0.65, "silhouette")
-    # Back of the skull: where the back curve is furthest back, above the base of the nose.
-    y_base = out.points.get("9.15", out.points["9.3"])[1]
-    kb = _extreme(-back, y_top, y_base, "out")
-    if kb is not None:
-        out.put("11.6", (back[kb], kb), 0.7, "silhouette")
-    # Off the profile: the generic head's layout fitted to what was found.
-    layout = generic_layout() if layout is None else layout
-    lay = {i: np.asarray(p, float) for i, p in layout["side"].items()}
-    want = [i for i in shown_in("side", "L") if i not in out.points]
-    face_fit = fit_view(lay, {i: out.points[i] for i in _FACE_ANCHORS if i in out.points}, (w, h))
-    anchors = [i for i in _HEAD_ANCHORS if i in out.points]
-    head_fit = _axis_fit(np.array([lay[i] for i in anchors]), np.array([out.points[i] for i in anchors]))
-    for fp in want:
-        if fp not in lay:
-            continue
-        far = FEATURE_POINTS[fp].group == 10 or fp in ("2.13",)
-        p = (head_fit if far else face_fit)(lay[fp][None])[0]
-        y = fy(fp)
-        if y is not None and front.source.get(fp if not flip else FEATURE_POINTS[fp].mirror or fp) != "rule":
-            p[1] = to_side(y)
-            conf = 0.35 if far else 0.45
-        else:
-            conf = 0.25
-        out.put(fp, p, conf, "rule")
-    # Back to the photo's own orientation and the ids of the side it shows.
+    # The back of the skull: on the back of the silhouette, as far down from the top as
+    # the generic head has it between the top and under the nose.
+    r = int(np.clip(round(y_top + _back_share() * (out.points["9.15"][1] - y_top)), rows[0], rows[-1]))
+    if np.isfinite(back[r]):
+        out.put("11.6", (back[r], r), 0.6, "silhouette")
+    out.extras.update(eye=eye, lips=lips, ear=ear)
+    # Back to the photo's own orientation.
     if flip:
         flipped = ViewPoints(mask=mask[:, ::-1], ipd_px=out.ipd_px, extras=out.extras)
         for fp, p in out.points.items():
-            f = FEATURE_POINTS[fp]
-            key = f.mirror if f.side != "C" else fp
-            flipped.put(key, (w - 1 - p[0], p[1]), out.confidence[fp], out.source[fp])
+            flipped.put(fp, (w - 1 - p[0], p[1]), out.confidence[fp], out.source[fp])
         out = flipped
     keep = set(shown_in("side", side))
     for fp in list(out.points):
@@ -290,3 +366,5 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int, where: 
         if fp not in keep or not (-0.5 <= x <= w - 0.5 and -0.5 <= y <= h - 0.5):
             del out.points[fp], out.confidence[fp], out.source[fp]
     return out, side
+
+

@@ -124,6 +124,24 @@ def test_foreign_glb_from_trimesh_loads(tmp_path):
     np.testing.assert_allclose(part.vertices.mean(axis=0), [1, 2, 3], atol=1e-6)
 
 
+def test_feature_points_read_from_the_json_chunk_alone(tmp_path):
+    from mpeg4.io.gltf import read_glb_feature_points
+
+    head = small_head()
+    path = tmp_path / "h.glb"
+    write_glb(head, path)
+    fps = read_glb_feature_points(path)
+    assert list(fps) == list(head.fp_positions())
+    for i, p in head.fp_positions().items():
+        np.testing.assert_allclose(fps[i], p, atol=1e-9)
+    scene = trimesh.Scene(trimesh.creation.box((0.1, 0.2, 0.3)))
+    scene.export(tmp_path / "foreign.glb")
+    assert read_glb_feature_points(tmp_path / "foreign.glb") == {}
+    (tmp_path / "junk.glb").write_bytes(b"not a head")
+    with pytest.raises(InputError, match="not a glTF file"):
+        read_glb_feature_points(tmp_path / "junk.glb")
+
+
 def test_bad_files_give_one_line_errors(tmp_path):
     with pytest.raises(InputError, match="head file not found"):
         load_head(tmp_path / "missing.glb")

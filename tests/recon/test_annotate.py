@@ -379,6 +379,23 @@ def test_fit_serves_a_valid_head(client, validate_gltf, tmp_path):
     assert max(abs(d) for d in fit["height_residual_mm"].values()) < 1.0
 
 
+def test_heights_that_disagree_still_give_a_preview_with_the_refusal(client):
+    views = _views(client)
+    assert client.post("/api/fit", json={"views": views}).json()["warning"] is None
+    # The side photo's hairline 60 px lower than the front photo's (about 18 mm).
+    p = views["side"]["points"]["11.1"]
+    views["side"]["points"]["11.1"] = [p[0], p[1] + 60]
+    fit = client.post("/api/fit", json={"views": views}).json()
+    assert "heights of the points marked in both photos disagree: 11.1" in fit["warning"]
+    assert "--focal" in fit["warning"] and abs(fit["height_residual_mm"]["11.1"]) > 8.0
+    # The build keeps its check.
+    from mpeg4.io.fdp_json import parse_fdp
+    from recon.fit import fit_head
+
+    with pytest.raises(InputError, match="disagree: 11.1"):
+        fit_head(parse_fdp({"format": "mpeg4-fdp", "version": 1, "views": views}), where="x")
+
+
 def test_the_preview_fit_uses_the_given_camera_and_size(photos, tmp_path):
     s = AnnotationSession(*photos, tmp_path / "a.fdp.json", detect=False, ipd_mm=58.0, focal_px=4000.0)
     c = TestClient(create_app(s, TOKEN), base_url=BASE, headers={TOKEN_HEADER: TOKEN})

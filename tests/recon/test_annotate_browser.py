@@ -217,12 +217,12 @@ def test_drag_guides_mirror_undo_redo_save_reload(photos, browser, tmp_path):
         assert np.allclose(_point(page, "front", "9.3"), saved.views["front"].points["9.3"], atol=1e-6)
         assert page.is_disabled("#btn-undo")
 
-        # The 3D preview refuses points whose heights disagree between the photos...
+        # The 3D preview fits points whose heights disagree between the photos, and says
+        # that the build would refuse them...
         page.click("#btn-fit")
-        page.wait_for_function("() => document.getElementById('preview-info').textContent.startsWith('No fit')",
-                               timeout=60000)
-        assert re.search(r"heights of the points marked in both photos disagree: 9\.3 by \+\d+\.\d mm",
-                         page.inner_text("#preview-info"))
+        page.wait_for_function("() => document.getElementById('preview3d').dataset.fits === '1'", timeout=60000)
+        assert re.search(r"recon build would refuse these points: the heights of the points marked in both photos "
+                         r"disagree: 9\.3 by \+\d+\.\d mm", page.inner_text("#preview-info"))
         # ... until the side photo's nose tip is dragged onto the same-height line.
         now = {v: {i: np.array(p) for i, p in pts["points"].items()} for v, pts in _points(page).items()}
         row = _height_map(now["front"], now["side"], {"9.3"})(now["front"]["9.3"])
@@ -235,9 +235,10 @@ def test_drag_guides_mirror_undo_redo_save_reload(photos, browser, tmp_path):
         assert guide_row == pytest.approx(row, abs=0.05)
         page.mouse.up()
         assert _point(page, "side", "9.3")[1] == pytest.approx(row, abs=0.05)
-        # The preview refits after the change by itself.
-        page.wait_for_function("() => document.getElementById('preview3d').dataset.fits === '1'", timeout=60000)
+        # The preview refits after the change by itself, without the warning.
+        page.wait_for_function("() => document.getElementById('preview3d').dataset.fits === '2'", timeout=60000)
         assert page.inner_text("#preview-info").startswith("Fitted in"), page.inner_text("#preview-info")
+        assert "would refuse" not in page.inner_text("#preview-info")
         assert page.get_attribute("#head-view", "data-meshes") == "8"
         assert page.inner_text("#preview-info").startswith("Fitted in")
         png = page.evaluate("() => document.querySelector('#head-view canvas').toDataURL('image/png')")

@@ -228,6 +228,7 @@ def test_a_row_without_annotations_uses_automatic_landmarks_and_is_flagged(peopl
     (parsed,) = read_manifest(manifest)
     defaults = {"ipd_mm": 63.0, "focal_px": None, "method": "dffd", "texture_size": 256, "atlas": False}
     installed = importlib.util.find_spec("recon.landmarks") is not None
+    from recon.animatable import clone_step
 
     def models_missing(front, side):
         raise ImportError("mediapipe is not installed")
@@ -242,12 +243,10 @@ def test_a_row_without_annotations_uses_automatic_landmarks_and_is_flagged(peopl
         if mediapipe_available():
             # The real detector: an unreviewed head, or a failure that names the detected points.
             (tmp_path / "real").mkdir()
-            record = build_person(parsed, str(tmp_path / "real"), defaults)
+            record = build_person(parsed, str(tmp_path / "real"), defaults, clone_step=clone_step)
             assert (record["status"] == "done" and record["unreviewed"]) or (
                 record["error_kind"] == "input" and "detected automatically" in record["error"]), record
     # A detector (here one that knows the true points) gives an unreviewed, animatable head.
-    from recon.animatable import clone_step
-
     truth = read_fdp_json(folder / good[0]["fdp"])
     out = tmp_path / "out"
     report = run_batch(manifest, out, workers=0, texture_size=256, clone_step=clone_step,

@@ -1,5 +1,6 @@
-"""recon.landmarks: the face-mesh table, automatic points on the example photos against
-their truth, either facing of the side photo, clear errors for bad photos."""
+"""recon.landmarks: the face-mesh tables, the profile fit, the colour and outline readers on
+drawn images, automatic points on the example photos against their truth, either facing of
+the side photo, clear errors for bad photos."""
 
 from pathlib import Path
 
@@ -8,7 +9,7 @@ import pytest
 
 from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.errors import InputError
-from recon.landmarks.mapping import MAP_FILE, _parse, apply_mapping, load_mapping
+from recon.landmarks.mapping import MAP_FILE, SIDE_MAP_FILE, _parse, apply_mapping, load_mapping
 from recon.landmarks.models import N_LANDMARKS, mediapipe_available
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -45,6 +46,22 @@ def test_table_loads_and_covers_the_face_mesh_points():
             assert set(row.landmarks) != set(m[mirror].landmarks), fp
 
 
+def test_side_table_covers_both_sides():
+    from recon.annotate.placement import shown_in
+
+    m = load_mapping(SIDE_MAP_FILE)
+    want = (set(shown_in("side", "L")) | set(shown_in("side", "R"))) - {"11.4", "11.5", "11.6"}
+    assert set(m) == want
+    for fp, row in m.items():
+        assert abs(sum(row.weights) - 1) < 1e-5 and max(abs(w) for w in row.weights) <= 2.5 + 1e-6, fp
+        assert all(0 <= k < 468 for k in row.landmarks), fp  # the surface, not the irises
+        assert 0 <= row.fit_error_pct < 15 and row.anatomy
+    # The face's points are known to a few % of the IPD, the ears' less well (the photo's
+    # own ear outline moves them).
+    face = [r.fit_error_pct for fp, r in m.items() if FEATURE_POINTS[fp].group not in (10, 11)]
+    assert np.median(face) < 5.0
+
+
 def test_table_mapping_commutes_with_affine_maps():
     rng = np.random.default_rng(1)
     lm = rng.normal(size=(N_LANDMARKS, 2)) * 100 + 500
@@ -65,6 +82,98 @@ def test_table_refuses_bad_rows():
         _parse("\n".join([body[0], "12.1,473 474 476,1 0 0,0,x"]), "t.csv")
     with pytest.raises(ValueError, match="outside"):
         _parse("\n".join([body[0], "3.5,473 474 999,1 0 0,0,x"]), "t.csv")
+
+
+# --- the readers, on drawn images -------------------------------------------------------------
+
+def test_profile_fit_recovers_a_known_similarity():
+    """A silhouette whose face-side outline is the midline landmarks' own (depth, height)
+    curve, scaled, rolled and shifted: the fit finds that similarity."""
+    from recon.landmarks.profile import MIDLINE, ProfileFit, fit_profile
+
+    rng = np.random.default_rng(3)
+    lm = rng.normal(size=(N_LANDMARKS, 3)) * 5 + [500, 600, 0]
+    # A face's profile in the front photo's pixels: forehead, nose, lips, chin (depth
+    # smaller forward), from row 300 to 760; the top of the head at row 120.
+    heights = np.linspace(300, 760, len(MIDLINE))
+    depth = np.interp(heights, [300, 420, 520, 560, 600, 650, 700, 760],
+                      [30, 40, 0, 45, 25, 40, 20, 70])
+    lm[list(MIDLINE), 2], lm[list(MIDLINE), 1] = depth, heights
+    truth = ProfileFit(1.1, np.radians(0.5), np.array([150.0, -20.0]), 0.0)
+    yy, xx = np.mgrid[:1100, :900]
+    curve = truth.apply(np.c_[np.interp(np.arange(150, 850), heights, depth, left=30, right=70),
+                              np.arange(150, 850)])
+    front_x = np.interp(yy, curve[:, 1], curve[:, 0])
+    top = truth.apply([[30.0, 120.0]])[0, 1]
+    mask = (xx >= front_x) & (xx < front_x + 380) & (yy >= top) & (yy < 1000)
+    fit = fit_profile(mask, lm, 120.0, 100.0, scale_guess=1.0)
+    uv = fit.apply(lm[list(MIDLINE)][:, [2, 1]])
+    want = truth.apply(lm[list(MIDLINE)][:, [2, 1]])
+    assert np.median(np.linalg.norm(uv - want, axis=1)) < 2.0, (fit, truth)
+    assert abs(fit.scale - 1.1) < 0.02 and fit.cost < 1.5
+    np.testing.assert_allclose(fit.inverse(fit.apply(want)), want, atol=1e-9)
+
+
+def test_hairline_is_a_sharp_change_not_shade():
+    from recon.landmarks.colour import ColourModel, hairline_on
+
+    skin_rgb, hair_rgb = np.array([200.0, 150, 120]), np.array([60.0, 40, 25])
+    # A column going up: skin darkening smoothly to half its light (shade), then hair from
+    # row 120 on.
+    n = 200
+    shade = np.linspace(1.0, 0.5, n)[:, None]
+    col = np.where(np.arange(n)[:, None] < 120, skin_rgb * shade, hair_rgb)
+    image = np.repeat(col[::-1, None, :], 11, axis=1).astype(np.uint8)  # row 0 at the top
+    from recon.landmarks.colour import sample_patches, to_lab
+
+    lab = to_lab(image)
+    skin = ColourModel.fit(sample_patches(lab, np.array([[5, n - 10]]), 4))
+    hair = ColourModel.fit(sample_patches(lab, np.array([[5, 20]]), 4))
+    path = np.c_[np.full(n, 5.0), np.arange(n - 1, -1, -1.0)]  # bottom to top
+    k, strength = hairline_on(lab, path, (1.0, 0.0), 4, skin, hair, 8)
+    assert k is not None and abs(k - 120) <= 2 and strength > 0.9
+    # Shade alone is no hairline.
+    shaded = np.repeat((skin_rgb * shade)[::-1, None, :], 11, axis=1).astype(np.uint8)
+    assert hairline_on(to_lab(shaded), path, (1.0, 0.0), 4, skin, hair, 8)[0] is None
+
+
+def test_ear_on_a_front_outline():
+    from recon.landmarks.front import ear_from_outline
+
+    yy, xx = np.mgrid[:600, :500]
+    head = ((xx - 250) / 150.0) ** 2 + ((yy - 300) / 220.0) ** 2 < 1
+    ear = ((xx - 420) / 28.0) ** 2 + ((yy - 300) / 55.0) ** 2 < 1  # on the image's right
+    got = ear_from_outline(head | ear, +1.0, 250.0, (220, 290), 420, 100.0)
+    assert got is not None
+    assert abs(got["top"][1] - 245) <= 4 and abs(got["lobe"][1] - 355) <= 4
+    assert got["top"][0] > 405 and got["upper_join"][0] < got["top"][0]
+    assert got["lower_join"][1] < got["lobe"][1]
+    # The other ear, the same seen in a mirror.
+    other = ear_from_outline((head | ear)[:, ::-1], -1.0, 249.0, (220, 290), 420, 100.0)
+    assert other is not None and abs(other["top"][0] - (499 - got["top"][0])) <= 1
+    assert other["top"][1] == got["top"][1] and other["lobe"][1] == got["lobe"][1]
+    # A smooth head has no ear.
+    assert ear_from_outline(head, +1.0, 250.0, (220, 290), 420, 100.0) is None
+
+
+def test_eye_white_and_lips_in_a_side_view():
+    from recon.landmarks.colour import to_lab
+    from recon.landmarks.side_parts import eye_white, lip_region
+
+    image = np.full((300, 300, 3), (205, 160, 130), np.uint8)
+    image[100:112, 120:160] = (235, 235, 232)  # the white of the eye, its back at x = 159
+    image[200:215, 60:101] = (170, 70, 80)  # the lips, their corner at x = 100
+    mask = np.zeros((300, 300), bool)
+    mask[20:290, 50:290] = True
+    lab = to_lab(image)
+    eye = eye_white(lab, mask, np.array([145.0, 106.0]), 100.0)
+    assert eye is not None and eye["back"][0] == 159 and eye["front"][0] == 120
+    lips = lip_region(lab, mask, np.array([95.0, 207.0]), 100.0)
+    assert lips is not None and lips["corner"][0] == 100
+    # Plain skin shows neither.
+    plain = to_lab(np.full((300, 300, 3), (205, 160, 130), np.uint8))
+    assert eye_white(plain, mask, np.array([145.0, 106.0]), 100.0) is None
+    assert lip_region(plain, mask, np.array([95.0, 207.0]), 100.0) is None
 
 
 # --- detection on the example photos ---------------------------------------------------------
@@ -98,11 +207,15 @@ def test_example_points_against_truth(example):
     model = [e for i, e in err["front"].items() if src["front"][i] == "model"]
     assert len(model) == 59 and np.median(model) < 2.0 and np.percentile(model, 90) < 4.0
     other = [e for i, e in err["front"].items() if src["front"][i] != "model"]
-    assert np.median(other) < 12.0
-    assert np.median(list(err["side"].values())) < 6.0
-    # The profile's own points: nose tip, under the nose, the lips.
-    for fp in ("9.3", "9.15", "8.1"):
-        assert err["side"][fp] < 4.0, (fp, err["side"][fp])
+    assert np.median(other) < 4.0
+    # Both ears found on the front photo's outline.
+    assert all(src["front"][i] == "silhouette" for i in ("10.1", "10.2", "10.5", "10.6"))
+    assert max(err["front"][i] for i in ("10.1", "10.2", "10.5", "10.6")) < 5.0
+    assert len(err["side"]) == 37
+    assert np.median(list(err["side"].values())) < 3.0
+    # The profile's own points: nose tip, under the nose, the lips; the eye's outer corner.
+    for fp in ("9.3", "9.15", "8.1", "8.2", "3.7", "8.3"):
+        assert err["side"][fp] < 3.0, (fp, err["side"][fp])
     # Left stays left: the face's left pupil on the image's right.
     assert fdp.views["front"].points["3.5"][0] > fdp.views["front"].points["3.6"][0]
     # Model points are more sure than rules.
@@ -188,5 +301,6 @@ def test_synthetic_identity_against_truth(ict_npz):
     err = {v: {i: np.linalg.norm(fdp.views[v].points[i] - t) / ipd * 100 for i, t in truth[v].points.items()
                if i in fdp.views[v].points} for v in ("front", "side")}
     assert np.median([e for i, e in err["front"].items() if src["front"][i] == "model"]) < 2.0
-    # The side photo's points are weaker (benchmarks/landmark_accuracy.py: median about 7 %).
-    assert np.median([e for i, e in err["side"].items() if src["side"][i] != "model"]) < 9.0
+    assert np.median([e for i, e in err["front"].items() if src["front"][i] != "model"]) < 5.0
+    # The side photo's (benchmarks/landmark_accuracy.py: median about 3.4 % over 20 identities).
+    assert np.median(list(err["side"].values())) < 5.0

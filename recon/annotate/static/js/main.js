@@ -249,7 +249,8 @@ class App extends Editor {
       const worst = Object.entries(r.height_residual_mm).filter(([, d]) => Math.abs(d) >= 1)
         .sort((a, b) => Math.abs(b[1]) - Math.abs(a[1])).slice(0, 3);
       info.textContent = `Fitted in ${r.seconds.toFixed(2)} s (${meshes} parts).` + (worst.length
-        ? ` Largest height disagreements between the photos: ${worst.map(([i, d]) => `${i} ${d.toFixed(1)} mm`).join(", ")}.` : "");
+        ? ` Largest height disagreements between the photos: ${worst.map(([i, d]) => `${i} ${d.toFixed(1)} mm`).join(", ")}.` : "")
+        + (r.warning ? ` recon build would refuse these points: ${r.warning}.` : "");
       panel.dataset.fits = String(Number(panel.dataset.fits ?? 0) + 1);
     } catch (e) {
       info.textContent = `No fit: ${e.message}`;
