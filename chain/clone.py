@@ -52,7 +52,7 @@ def target_head(path, detect=None, progress=None) -> tuple[Head, list[str]]:
 def clone_onto(source, target, detect=None, progress=None, **options) -> tuple[Head, list[str]]:
     """:func:`fmc.clone.clone` of a head file onto another, marking the target if needed.
 
-    ``options`` go to :func:`fmc.clone.clone` (``antialias``, ``triangulation``).
+    ``options`` go to :func:`fmc.clone.clone` (``antialias``, ``triangulation``, ``alignment``).
 
     Returns
     -------

@@ -119,8 +119,11 @@ def clone_cmd(source: Path = typer.Option(..., "--source", help="Head with motio
               target: Path = typer.Option(..., "--target", help="Head with feature points (.glb, or .obj + fdp.json)."),
               out: Path = typer.Option(..., "-o", "--out", help="Target with the cloned motion (.glb)."),
               antialias: float = typer.Option(
-                  None, help="Radius of the anti-aliasing disc in the alignment space (0: none; default: 0.02 when "
-                             "the target is sparser than the source)."),
+                  None, help="Radius of the anti-aliasing disc in the alignment space (0: none; default, when the "
+                             "target is sparser than the source: 0.04 of each target vertex's mean edge length there)."),
+              alignment: str = typer.Option("surface", help="How the points between the feature points follow them: "
+                                                            "surface (bi-harmonic over each mesh) or affine (over the "
+                                                            "feature-point triangles)."),
               triangulation: str = typer.Option("mpeg4", help="Feature-point triangulation: mpeg4 (shipped) or "
                                                               "delaunay.")) -> None:
     """Clone morph targets and Facial Animation Tables from one head onto another (Pandzic's
@@ -128,7 +131,8 @@ def clone_cmd(source: Path = typer.Option(..., "--source", help="Head with motio
     from fmc.clone import clone
     from mpeg4.io import load_head, save_head
 
-    head, warnings = clone(load_head(source), load_head(target), antialias=antialias, triangulation=triangulation)
+    head, warnings = clone(load_head(source), load_head(target), antialias=antialias, triangulation=triangulation,
+                           alignment=alignment)
     for w in warnings:
         typer.echo(f"fmc: warning: {w}", err=True)
     typer.echo(save_head(head, out))

@@ -9,18 +9,24 @@ The method, after Pandžić [1]_, one small function per step:
    targets), divided by the source's scales.
 3. Alignment space (:func:`alignment_space`): a cylindrical projection about a vertical
    axis placed so the mouth spans the same angle on both heads, angle 0 at the nose tip;
-   then the feature-point alignment (:func:`align_target`, :func:`warp`): the target's
-   points moved onto the source's by a piecewise-affine map over a shipped triangulation
-   of the feature points (:func:`load_fp_triangulation`; Delaunay as an option), the
-   same triangles both ways so that the two directions are exact inverses; depth scaled
-   by the two heads' radii at the feature points.
+   then the feature-point alignment (:func:`align_heads`): both heads' points moved
+   half-way to each other's (:func:`midway`) over a shipped triangulation of the feature
+   points (:func:`load_fp_triangulation`; Delaunay as an option), the rest carried
+   along by a bi-harmonic interpolation over each head's mesh (:func:`surface_warp`;
+   the piecewise-affine map, :func:`warp`, as an option), the same from either side so
+   that cloning A → B and B → A use one correspondence; depth scaled by the two heads'
+   radii at the feature points, the depth under the outer surface
+   (:func:`outer_radius`: the mouth's inside, the sockets) by their sizes.
 4. Interpolation (:func:`skin_weights`, :func:`interpolation_matrix`): each target vertex
    takes the motion of the projected source triangle that holds it, the nearest in depth
    where several do; a triangle it lies outside competes by its distance, the excess of
    negative barycentric weight clamped and renormalised (so a vertex just off its own
-   surface takes that surface's motion, not the layer behind).
-5. Anti-aliasing: the motion averaged over a disc of samples (on by default when the
-   target is sparser than the source).
+   surface takes that surface's motion, not the layer behind); each corner's value is
+   carried half-way along its gradient (:func:`gradient_operator`), exact for quadratic
+   motion.
+5. Anti-aliasing: the motion averaged over a disc of samples about the target vertex
+   (Epanechnikov weights), its radius a fraction of the vertex's edges (on by default
+   when the target is sparser than the source).
 6. Lips (:func:`lip_sides`, :func:`lip_classes`, :func:`lip_sides_on_mesh`): upper-lip
    target vertices take no motion from the source's lower lip, and the other way round;
    the lips' zone is a polygon of their feature points, the side within it the lip whose
@@ -36,22 +42,22 @@ References
 .. [1] I. S. Pandžić, "Facial motion cloning", Graphical Models 65(6) (2003) 385-404.
 """
 
-from .align import (FPTriangulation, delaunay_fp_triangulation, folded_triangles, load_fp_triangulation,
-                    triangulation_for, vertex_positions, warp)
-from .cloning import (ANTIALIAS_SUPPORT, REQUIRED_FPS, Correspondence, align_target, check_head, clone, clone_targets,
+from .align import (FPTriangulation, bilaplacian, delaunay_fp_triangulation, folded_triangles, load_fp_triangulation,
+                    midway, outer_radius, surface_warp, triangulation_for, vertex_positions, warp)
+from .cloning import (ANTIALIAS_FRACTION, REQUIRED_FPS, Correspondence, align_heads, check_head, clone, clone_targets,
                       correspond, lip_sides, pin_feature_points, skin_weights)
-from .interpolate import TriangleIndex, disc_samples, interpolation_matrix
+from .interpolate import TriangleIndex, disc_samples, gradient_operator, interpolation_matrix
 from .parts import PART_ROLES, PartRef, find_parts, rigid_motion, sphere_centre
 from .regions import LIP_FPS, lip_classes, lip_sides_on_mesh, normalisation, region_scales
 from .space import MOUTH_SPAN, alignment_space, cylinder_axis
 
 __all__ = [
-    "clone", "clone_targets", "correspond", "Correspondence", "check_head", "REQUIRED_FPS", "ANTIALIAS_SUPPORT",
-    "align_target", "lip_sides", "skin_weights", "pin_feature_points",
+    "clone", "clone_targets", "correspond", "Correspondence", "check_head", "REQUIRED_FPS", "ANTIALIAS_FRACTION",
+    "align_heads", "lip_sides", "skin_weights", "pin_feature_points",
     "normalisation", "region_scales", "lip_classes", "lip_sides_on_mesh", "LIP_FPS",
     "alignment_space", "cylinder_axis", "MOUTH_SPAN",
     "FPTriangulation", "load_fp_triangulation", "delaunay_fp_triangulation", "triangulation_for", "vertex_positions",
-    "folded_triangles", "warp",
-    "TriangleIndex", "disc_samples", "interpolation_matrix",
+    "folded_triangles", "warp", "midway", "surface_warp", "bilaplacian", "outer_radius",
+    "TriangleIndex", "disc_samples", "gradient_operator", "interpolation_matrix",
     "PART_ROLES", "PartRef", "find_parts", "rigid_motion", "sphere_centre",
 ]

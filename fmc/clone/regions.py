@@ -59,13 +59,15 @@ def region_scales(head: Head, points: np.ndarray) -> np.ndarray:
     pts = np.array([head.fp_position(i) for i in ids])
     mouth = np.array([i in MOUTH_REGION_FPS for i in ids])
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    f = head.fapu  # measured afresh on every access: once here
+    m_scale, f_scale = np.array([f.MW0, 3 * f.MNS0, 3 * f.MNS0]), np.array([f.ES0, 2 * f.ENS0, 2 * f.ENS0])
     if not mouth.any() or mouth.all():
-        return np.tile(mouth_scale(head) if mouth.any() else face_scale(head), (len(p), 1))
+        return np.tile(m_scale if mouth.any() else f_scale, (len(p), 1))
     d_mouth = cKDTree(pts[mouth]).query(p)[0]
     d_face = cKDTree(pts[~mouth]).query(p)[0]
-    t = np.clip(0.5 + (d_face - d_mouth) / (_BORDER * head.fapu.ES0), 0.0, 1.0)
+    t = np.clip(0.5 + (d_face - d_mouth) / (_BORDER * f.ES0), 0.0, 1.0)
     w = (t * t * (3 - 2 * t))[:, None]
-    return w * mouth_scale(head) + (1 - w) * face_scale(head)
+    return w * m_scale + (1 - w) * f_scale
 
 
 def normalisation(head: Head, vertices: np.ndarray | None = None) -> np.ndarray:
