@@ -14,6 +14,11 @@ the targets apply to it: median <= 2 mm on the landmark-model points, <= 4 mm on
 rest), else the perfect 2D detector of :mod:`recon.synthetic` (the true points seen by the
 renders' cameras), which measures everything after detection. ``--detector`` chooses.
 
+``by_rule`` gives the median error and confidence of the points each rule placed
+(``fitted``: found and smoothed by the generic head fitted to the surface; ``shape``: the
+fitted generic head's, for points a grey render cannot show), so that the confidences can
+be checked against the errors.
+
 Landmark-model points: those a front photo shows clearly (catalogue ``front = Y``), on the
 skin and eyes; the rest: the ears, cheeks, skull, jaw, teeth, tongue and 7.1.
 
@@ -63,6 +68,7 @@ def main(argv=None) -> int:
     print(f"detector: {'recon.landmarks.detect' if which == 'landmarks' else 'perfect 2D detector (true points)'}")
     data = load_ict(NPZ)
     errors: dict[str, list[float]] = {}
+    by_rule: dict[str, list[tuple[float, float]]] = {}  # how a point was placed -> (error, confidence)
     frame_ok, tilt_left, times, faces, failed = [], [], [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(args.identities):
@@ -81,6 +87,7 @@ def main(argv=None) -> int:
                 if i in mf.points:
                     p = result.frame.inverse(h.point[None])[0]
                     errors.setdefault(i, []).append(float(np.linalg.norm(p - mf.points[i]) * to_m * 1000))
+                    by_rule.setdefault(h.how, []).append((errors[i][-1], h.confidence))
             f = result.frame
             frame_ok.append((f.unit, f.up, f.forward) == (mf.unit, mf.up, mf.forward))
             # What remains of the tilt: the found frame against the identity's own.
@@ -104,6 +111,9 @@ def main(argv=None) -> int:
     print(f"rest_median: {np.median(rest):.2f} mm")
     print(f"within_3mm: {np.mean(allv < 3.0) * 100:.1f} %")
     print("worst_points: " + ", ".join(f"{i} {np.median(errors[i]):.1f}" for i in worst) + " mm")
+    rules = sorted(by_rule, key=lambda r: -len(by_rule[r]))
+    print("by_rule: " + ", ".join(f"{r} {np.median([e for e, _ in by_rule[r]]):.1f} mm at confidence "
+                                  f"{np.median([c for _, c in by_rule[r]]):.2f} ({len(by_rule[r])})" for r in rules))
     print(f"frame_correct: {np.mean(frame_ok) * 100:.0f} % (unit, up and forward)")
     print(f"tilt_left_median: {np.median(tilt_left):.2f} deg (applied: up to 10)")
     print(f"triangles_median: {np.median(faces):.0f}")

@@ -27,9 +27,16 @@ comes in its own units and axes. :func:`mark` gives it both:
 6. :func:`refine_frame` turns the frame so the points sit as the generic head's do (a
    Umeyama rotation), and the head is rendered and lifted once more in that frame.
 7. :func:`find_parts` finds the eyes (the pieces the pupils' rays hit), teeth and tongue
-   (the pieces inside the mouth) by the points and the mesh's connectivity;
-   :func:`hidden_points` places the points no view shows (teeth, tongue, 7.1) from the
-   generic head.
+   (the pieces inside the mouth) by the points and the mesh's connectivity.
+8. :func:`fitted_points` fits the generic head's skin to the surface, following the
+   points found on it (:func:`recon.template_fit.fit_generic`: a similarity, then a
+   thin-plate-spline field refined by non-rigid closest-point matching). A grey render
+   shows no eyebrows, hairline or ear detail, so the points a detector can only guess
+   there (:func:`untextured_guesses`) are the fitted generic head's, with lower
+   confidences; the found points are smoothed by the fit as far as the detector says its
+   noise needs (its ``give``).
+9. :func:`hidden_points` places the points no view shows and no fit reached (teeth,
+   tongue; 7.1 on a mesh without a skin) from the generic head.
 
 The result is an ``fdp.json`` that binds every point to the file's own vertices and says
 how to bring the mesh to the neutral frame and name its parts
@@ -60,8 +67,8 @@ from mpeg4.head import FeaturePointBinding, Head
 from mpeg4.io.fdp_json import FdpFile, PartSource, place_mesh
 
 __all__ = ["UNITS", "AXES", "Frame", "check_mesh", "estimate_frame", "refine_frame", "Views", "render_views",
-           "landmark_detector", "Hit", "lift", "find_parts", "hidden_points", "Marking", "mark", "mark_file",
-           "load_mesh", "default_fdp_path", "MIN_POINTS"]
+           "landmark_detector", "untextured_guesses", "Hit", "lift", "find_parts", "fitted_points", "hidden_points",
+           "Marking", "mark", "mark_file", "load_mesh", "default_fdp_path", "MIN_POINTS"]
 
 #: Units a mesh may be in (metres per unit). Detection chooses among m, cm and mm.
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
@@ -75,6 +82,12 @@ _NOSE_CAP = 0.015  # metres: depth of the cap in which the nose ends
 _SLICE = 0.105  # metres beyond the nose: the forehead and skull above, under the chin below
 _CLOSE_CALL = 0.03  # metres: up scores nearer than this leave it to the feature points
 _NOT_A_NOSE = 0.8  # a narrowest end at least this share of the next one is no nose
+# Points a photo shows by colour or the face's oval, not by the shape a render shows.
+_TEXTURE_POINTS = ("2.10", "2.11", "2.12", "2.13", "2.14", "11.1", "11.2", "11.3", "11.5")
+# How far the generic head's shape may overrule recon.landmarks' points on a render
+# (template_fit.fit_generic's give): best of 1e-4, 1e-3, 1e-2 on ICT identities 20-27,
+# which the benchmark (0-19) does not use.
+_LANDMARK_GIVE = 1e-3
 _SKIN, _WHITE, _PINK = (0.86, 0.68, 0.56), (0.92, 0.92, 0.9), (0.75, 0.4, 0.42)
 
 
@@ -536,6 +549,10 @@ def render_views(head: Head, folder, size: int = 1024, frame: np.ndarray | None 
 def landmark_detector() -> Callable[[Views], FdpFile]:
     """The photo annotation's detector (:func:`recon.landmarks.detect`) applied to the renders.
 
+    The detector carries ``guessed`` (:func:`untextured_guesses`) and ``give`` (how far
+    the generic head fitted to the surface may smooth its points; measured on ICT
+    identities that ``benchmarks/mark3d_accuracy.py`` does not use) for :func:`mark`.
+
     Raises
     ------
     InputError
@@ -558,7 +575,24 @@ def landmark_detector() -> Callable[[Views], FdpFile]:
         return detect(os.fspath(views.paths["front"]), os.fspath(views.paths["side"]))
 
     run.__name__ = "recon.landmarks.detect"
+    run.guessed = untextured_guesses
+    run.give = _LANDMARK_GIVE
     return run
+
+
+def untextured_guesses(found: FdpFile) -> set[str]:
+    """The points a photo detector can only guess on the render of an untextured mesh.
+
+    Those a photo shows by colour, which a grey render does not have: the eyebrows (4.x),
+    the hairline and the hair (11.1-11.3, 11.5); those the face mesh guesses from the
+    face's oval, not from anything it sees (the chin boss and corners, the jaw angles
+    2.10-2.14, the cheeks 5.x); and whatever :func:`recon.landmarks.detect` found in the
+    front view by the silhouette or by rule rather than by its face mesh (the ears, the top
+    of the skull). :func:`fitted_points` places them from the shape instead.
+    """
+    source = (found.metadata.get("landmarks") or {}).get("source", {}).get("front", {})
+    out = {i for i in FP_IDS if FEATURE_POINTS[i].group in (4, 5) or i in _TEXTURE_POINTS}
+    return out | {i for i, s in source.items() if s != "model"}
 
 
 # --- lifting -------------------------------------------------------------------------------
@@ -580,7 +614,9 @@ class Hit:
         In [0, 1].
     how : str
         Which rule placed it (``front ray``, ``profile``, ``side ray``, ``mirrored``,
-        ``teeth``, ``tongue``, ``generic``).
+        ``eye front``; after :func:`fitted_points` ``fitted`` for a found point smoothed by
+        the fitted generic head and ``shape`` for the fitted generic head's own; ``teeth``,
+        ``tongue``, ``generic``).
     """
 
     point: np.ndarray
@@ -731,7 +767,8 @@ def lift(head: Head, views: Views, found: FdpFile, surface: _Surface | None = No
     view is the front ray's first hit, its confidence lowered where the side view puts it
     elsewhere; a point only the side view shows clearly is the side ray's first hit (a ray
     grazing a rim takes the rim); its right partner (the side view shows the left) is the
-    mirror image, snapped; a pupil on a separate eyeball is the eyeball's front.
+    mirror image, snapped; a pupil on a separate eyeball is the eyeball's front (on a head
+    whose eyes are named parts, wherever the detector put it).
 
     Parameters
     ----------
@@ -802,6 +839,16 @@ def lift(head: Head, views: Views, found: FdpFile, surface: _Surface | None = No
         if len(eye) < 0.5 * len(surface.vertices) and np.linalg.norm(apex - h.point) < 0.008:
             tri, snapped = surface.closest(apex[None], [h.part])
             out[i] = surface.hit(tri[0], snapped[0], h.confidence, "eye front")
+    # Once the eyes are named parts (the last pass), a pupil is the front of its eyeball
+    # wherever the detector put it; a detector far from it is trusted less.
+    for i, role in (("3.5", "eye_l"), ("3.6", "eye_r")):
+        h = out.get(i)
+        if h is None or h.how == "eye front" or role not in head.parts:
+            continue
+        eye = head.parts[role].vertices
+        tri, snapped = surface.closest(eye[np.argmax(eye[:, 2])][None], [role])
+        near = np.linalg.norm(snapped[0] - h.point) < 0.008
+        out[i] = surface.hit(tri[0], snapped[0], h.confidence * (1.0 if near else 0.5), "eye front")
     # Right partners of points only the (left) side view shows.
     partners = [(FEATURE_POINTS[i].mirror, i) for i in list(out) if FEATURE_POINTS[i].side == "L"
                 and FEATURE_POINTS[i].mirror not in out and out[i].how == "side ray"]
@@ -954,6 +1001,75 @@ def find_parts(head: Head, hits: Mapping[str, Hit]) -> tuple[dict[str, PartSourc
         if s.vertices is None and any(o.source == s.source for r, o in out.items() if r != role):
             del out[role]
     return out, notes
+
+
+# --- points from the shape ----------------------------------------------------------------
+
+def fitted_points(head: Head, hits: dict[str, Hit], guessed=(), give: float = 0.0,
+                  surface: _Surface | None = None, generic: Head | None = None) -> dict[str, Hit]:
+    """Points from the generic head fitted to the surface (:func:`recon.template_fit.fit_generic`).
+
+    The found skin points (all but ``guessed``) are the fit's anchors. Then:
+
+    - a guessed point, one the detector missed, or an anchor the fit leaves out as an
+      outlier: the fitted generic head's point, snapped to the skin (``how`` ``"shape"``;
+      confidence 0.5 on the face, 0.3 for the ears, skull and hairline);
+    - an anchor, when ``give`` > 0: the fitted point snapped to the skin, which smooths the
+      detector's noise by the generic head's shape (``"fitted"``; the detector's
+      confidence, lowered by how far the fit moved it);
+    - 7.1 (inside the neck): the generic head's, carried by the fit, bound inside (0.3).
+
+    Points not on the skin (pupils, teeth, tongue) are left as they are.
+
+    Parameters
+    ----------
+    head : Head
+        In the neutral frame, parts named (a ``skin`` part; else ``hits`` are returned).
+    hits : dict of str to Hit
+        From :func:`lift`.
+    guessed : collection of str
+        Points the detector could only guess (:func:`untextured_guesses`).
+    give : float
+        How far the shape may overrule the anchors (see ``fit_generic``); 0 keeps them.
+
+    Returns
+    -------
+    dict of str to Hit
+        In catalogue order.
+    """
+    from .template_fit import fit_generic
+
+    if "skin" not in head.parts:
+        return hits
+    if generic is None:
+        from mpeg4.generic_head import load_generic_head
+
+        generic = load_generic_head()
+    surface = surface or _Surface(head)
+    gb = generic.feature_points
+    anchors = {i: h for i, h in hits.items() if i not in guessed and h.confidence > 0 and i in gb
+               and gb[i].part == "skin" and h.part == "skin"}
+    skin = head.parts["skin"]
+    try:
+        fit = fit_generic(skin.vertices, skin.triangles, {i: h.point for i, h in anchors.items()},
+                          {i: h.confidence for i, h in anchors.items()}, generic, give=give)
+    except InputError:
+        return hits
+    out = dict(hits)
+    ids = [i for i in fit.points if i in FEATURE_POINTS and i != "7.1"
+           and (i not in anchors or give > 0 or i not in fit.anchors)]
+    if ids:
+        tri, snapped = surface.closest(np.array([fit.points[i] for i in ids]), ["skin"])
+        for i, t, p in zip(ids, tri, snapped):
+            if i in anchors and i in fit.anchors:
+                moved = float(np.linalg.norm(p - anchors[i].point))
+                out[i] = surface.hit(t, p, anchors[i].confidence * np.exp(-(moved / 0.006) ** 2), "fitted")
+            else:
+                far = FEATURE_POINTS[i].group in (7, 10, 11)
+                out[i] = surface.hit(t, p, 0.3 if far else 0.5, "shape")
+    if "7.1" in gb:
+        out["7.1"] = Hit(fit.move(generic.fp_position("7.1"))[0], "skin", -1, np.zeros(3), 0.3, "shape")
+    return {i: out[i] for i in FP_IDS if i in out}
 
 
 # --- points no view shows ------------------------------------------------------------------
@@ -1113,7 +1229,10 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
         mesh as read.
     detect : callable, optional
         ``detect(views) -> FdpFile`` with ``front`` and ``side`` pixels and confidences;
-        :func:`landmark_detector` (the photo annotation's) when None.
+        :func:`landmark_detector` (the photo annotation's) when None. Optional attributes:
+        ``detect.guessed(found) -> set`` of the points it can only guess on a grey render
+        (placed from the shape instead), ``detect.give`` how far the generic head's shape
+        may smooth its points (:func:`fitted_points`; 0, the points kept, when absent).
     unit, up, forward : str, optional
         See :func:`estimate_frame`.
     size : int
@@ -1198,6 +1317,10 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
         found = _detect(detect, views, name, where)
     surface = _Surface(head)
     hits = lift(head, views, found, surface)
+    say("fitting the generic head to the surface")
+    guessed = getattr(detect, "guessed", None)
+    hits = fitted_points(head, hits, set() if guessed is None else guessed(found), getattr(detect, "give", 0.0),
+                         surface)
     hits = hidden_points(head, hits, surface=surface)
     bindings = {}
     for i, h in hits.items():

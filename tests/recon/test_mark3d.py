@@ -188,7 +188,8 @@ def _detector_available() -> bool:
 
 @pytest.mark.slow
 def test_the_photo_detector_on_the_renders(meshes):
-    """The final code path: recon.landmarks.detect on the renders of an untextured mesh."""
+    """The final code path: recon.landmarks.detect on the renders of an untextured mesh, the
+    points it cannot see there placed by the fitted generic head."""
     if not _detector_available():
         pytest.skip("recon.landmarks or mediapipe is not installed")
     mf = meshes["ply"]
@@ -197,4 +198,12 @@ def test_the_photo_detector_on_the_renders(meshes):
     err = _errors_mm(result, mf)
     eyes_nose_mouth = [err[i] for i in ("3.5", "3.6", "3.7", "3.12", "9.3", "8.3", "8.4", "2.2", "9.15") if i in err]
     assert len(eyes_nose_mouth) == 9 and np.median(eyes_nose_mouth) < 4.0
+    # The eyebrows a grey render does not show: from the generic head fitted to the
+    # surface, with a confidence that says so.
+    brows = ("4.1", "4.2", "4.3", "4.4", "4.5", "4.6")
+    assert np.median([err[i] for i in brows]) < 4.0, [round(err[i], 1) for i in brows]
+    meta = result.fdp.metadata["mark3d"]
+    assert all(meta["placed_by"][i] == "shape" and meta["confidence"][i] <= 0.5 for i in brows)
+    by = {how: [meta["confidence"][i] for i, h in meta["placed_by"].items() if h == how] for how in ("fitted", "shape")}
+    assert meta["placed_by"]["8.3"] == "fitted" and np.median(by["fitted"]) > np.median(by["shape"])
     assert (result.frame.unit, result.frame.up, result.frame.forward) == (mf.unit, mf.up, mf.forward)
