@@ -25,7 +25,6 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
-from scipy.interpolate import RBFInterpolator
 
 from mpeg4.catalogue import check_fp_id
 from mpeg4.errors import InputError
@@ -158,6 +157,8 @@ def dffd(vertices, controls, displaced, names=None) -> np.ndarray:
 
 def rbf_deform(vertices, controls, displaced, kernel: str = "thin_plate_spline") -> np.ndarray:
     """The same deformation by radial basis functions (scipy's RBFInterpolator), for comparison."""
+    from scipy.interpolate import RBFInterpolator  # here: the import costs half a second
+
     controls = np.asarray(controls, dtype=np.float64)
     rbf = RBFInterpolator(controls, np.asarray(displaced, dtype=np.float64) - controls, kernel=kernel)
     return np.asarray(vertices, dtype=np.float64) + rbf(np.asarray(vertices, dtype=np.float64))
@@ -229,6 +230,8 @@ def deform_head(head: Head, targets: Mapping[str, np.ndarray], method: str = "df
         def move(v):
             return v + nn.coordinates(v) @ (displaced - controls)
     else:
+        from scipy.interpolate import RBFInterpolator
+
         rbf = RBFInterpolator(controls, displaced - controls, kernel="thin_plate_spline")
 
         def move(v):

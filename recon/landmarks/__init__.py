@@ -32,6 +32,7 @@ from .front import SOURCES, ViewPoints, detect_front
 from .mapping import FpMapping, apply_mapping, load_mapping
 from .models import MediapipeMissing, mediapipe_available
 from .side import detect_side, facing_of
+from .silhouette import head_masks
 
 __all__ = ["detect", "detect_images", "detect_front", "detect_side", "facing_of", "ViewPoints", "SOURCES",
            "load_mapping", "apply_mapping", "FpMapping", "MediapipeMissing", "mediapipe_available"]
@@ -49,8 +50,9 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
         are the front photo's mesh placed by the side photo's silhouette), the side the side
         photo shows, and which of the eye, lips and ear the side photo was seen to show.
     """
-    f = detect_front(front, front_name)
-    s, shown = detect_side(side, f, front.shape[0], side_name)
+    front_mask, side_mask = head_masks([front, side])
+    f = detect_front(front, front_name, front_mask)
+    s, shown = detect_side(side, f, front.shape[0], side_name, side_mask)
     views = {}
     for name, v, img, path in (("front", f, front, front_name), ("side", s, side, side_name)):
         views[name] = ViewAnnotation(image=None, width=int(img.shape[1]), height=int(img.shape[0]),

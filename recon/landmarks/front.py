@@ -299,7 +299,7 @@ def _runs(flags: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
-def detect_front(image: np.ndarray, where: str = "front photo") -> ViewPoints:
+def detect_front(image: np.ndarray, where: str = "front photo", mask: np.ndarray | None = None) -> ViewPoints:
     """Feature points on a front photo (see the module docstring).
 
     Parameters
@@ -308,6 +308,9 @@ def detect_front(image: np.ndarray, where: str = "front photo") -> ViewPoints:
         RGB photo of the face looking at the camera.
     where : str
         The photo's name, for messages.
+    mask : (H, W) bool, optional
+        The head's silhouette, :func:`recon.landmarks.silhouette.head_mask` of the photo
+        when omitted.
 
     Returns
     -------
@@ -345,7 +348,7 @@ def detect_front(image: np.ndarray, where: str = "front photo") -> ViewPoints:
         conf = quality * (0.95 - 0.05 * mapping[fp].fit_error_pct)
         if -0.5 <= xy[0] <= w - 0.5 and -0.5 <= xy[1] <= h - 0.5:
             front.put(fp, xy, max(conf, 0.3 * quality), "model")
-    front.mask = head_mask(image)
+    front.mask = head_mask(image) if mask is None else np.asarray(mask, bool)
     if not front.mask.any():
         raise InputError("no head found in the front photo (the person could not be told from the background)",
                          where=where, fix="photograph the person against a plain, contrasting background")

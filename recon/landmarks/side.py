@@ -94,7 +94,7 @@ def _apex(mask: np.ndarray, y_top: float, depth: float) -> float:
     return float(np.clip(-b / (2 * a), x.min(), x.max()))
 
 
-def _oriented(image: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray, bool]:
+def _oriented(image: np.ndarray, where: str, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, bool]:
     """The side photo turned nose-left, its silhouette, and whether it was flipped."""
     h, w = image.shape[:2]
     faces = face_landmarks(image)
@@ -106,7 +106,7 @@ def _oriented(image: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray, bo
             raise InputError("the side photo shows the face from the front", where=where,
                              fix="give a profile photo (the head turned 90 degrees, one ear towards the camera); "
                                  "if the two photos were given the other way round, swap them")
-    mask = head_mask(image)
+    mask = head_mask(image) if mask is None else np.asarray(mask, bool)
     if mask.sum() < 0.01 * h * w:
         raise InputError("no head found in the side photo (the person could not be told from the background)",
                          where=where, fix="photograph the profile against a plain, contrasting background")
@@ -120,7 +120,7 @@ def _oriented(image: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray, bo
 
 
 def register_profile(image: np.ndarray, front: ViewPoints, front_height: int,
-                     where: str = "side photo") -> tuple[ProfileFit, dict]:
+                     where: str = "side photo", mask: np.ndarray | None = None) -> tuple[ProfileFit, dict]:
     """The front photo's face mesh laid onto a side photo's profile.
 
     Parameters
@@ -133,6 +133,8 @@ def register_profile(image: np.ndarray, front: ViewPoints, front_height: int,
         The front photo's height in pixels.
     where : str
         The photo's name, for messages.
+    mask : (H, W) bool, optional
+        The head's silhouette in the photo as given (:func:`head_mask` when omitted).
 
     Returns
     -------
@@ -142,7 +144,7 @@ def register_profile(image: np.ndarray, front: ViewPoints, front_height: int,
         ``image`` and ``mask`` turned nose-left, ``flipped`` (bool), ``distance`` (the
         outline's distance map).
     """
-    image, mask, flip = _oriented(image, where)
+    image, mask, flip = _oriented(image, where, mask)
     dist = outline_distance(mask)
     try:
         fit = fit_profile(mask, front.extras["landmarks"], front.points["11.5"][1], front.ipd_px,
@@ -237,7 +239,7 @@ def _stretch(points: dict, ids, prof: np.ndarray, anchor_pred: np.ndarray, ancho
 
 
 def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
-                where: str = "side photo") -> tuple[ViewPoints, str]:
+                where: str = "side photo", mask: np.ndarray | None = None) -> tuple[ViewPoints, str]:
     """Feature points on a profile photo (see the module docstring).
 
     Parameters
@@ -250,6 +252,8 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
         The front photo's height in pixels.
     where : str
         The photo's name, for messages.
+    mask : (H, W) bool, optional
+        The head's silhouette in the photo as given (:func:`head_mask` when omitted).
 
     Returns
     -------
@@ -264,7 +268,7 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
     from .side_parts import EAR_OUTLINE, ear_box, eye_white, lip_region
 
     h, w = image.shape[:2]
-    fit, ctx = register_profile(image, front, front_height, where)
+    fit, ctx = register_profile(image, front, front_height, where, mask)
     image, mask, flip = ctx["image"], ctx["mask"], ctx["flipped"]
     side = "R" if flip else "L"
     out = ViewPoints(mask=mask)
