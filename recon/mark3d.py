@@ -66,6 +66,8 @@ from mpeg4.errors import InputError
 from mpeg4.head import FeaturePointBinding, Head
 from mpeg4.io.fdp_json import FdpFile, PartSource, place_mesh
 
+from .deform import fit_similarity
+
 __all__ = ["UNITS", "AXES", "Frame", "check_mesh", "estimate_frame", "refine_frame", "Views", "render_views",
            "landmark_detector", "untextured_guesses", "Hit", "lift", "find_parts", "fitted_points", "hidden_points",
            "Marking", "mark", "mark_file", "load_mesh", "default_fdp_path", "MIN_POINTS"]
@@ -449,25 +451,11 @@ def refine_frame(frame: Frame, points: Mapping[str, np.ndarray], weights: Mappin
     p = np.array([points[i] for i in ids])
     q = np.array([g[i] for i in ids])
     w = np.ones(len(ids)) if weights is None else np.array([max(weights[i], 1e-3) for i in ids])
-    r, t, s = _umeyama(p, q, w)
+    sim = fit_similarity(p, q, w)
+    r, t, s = sim.rotation, sim.translation, sim.scale
     angle = float(np.degrees(np.arccos(np.clip((np.trace(r) - 1) / 2, -1, 1))))
     note = f"turned {angle:.1f} degrees to sit as the generic head (by {len(ids)} points)"
     return frame.turned(r, t / s, note), angle
-
-
-def _umeyama(p: np.ndarray, q: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """Weighted similarity ``q ~ s R p + t`` [1]_: (R, t, s)."""
-    w = w / w.sum()
-    mp, mq = w @ p, w @ q
-    a, b = p - mp, q - mq
-    cov = (b * w[:, None]).T @ a
-    u, d, vt = np.linalg.svd(cov)
-    e = np.eye(3)
-    e[2, 2] = np.sign(np.linalg.det(u @ vt)) or 1.0
-    r = u @ e @ vt
-    var = float(w @ np.sum(a * a, axis=1))
-    s = float(np.trace(np.diag(d) @ e) / var) if var > 0 else 1.0
-    return r, mq - s * r @ mp, s
 
 
 # --- rendering -----------------------------------------------------------------------------
@@ -1080,9 +1068,8 @@ def _generic_map(hits: Mapping[str, Hit], generic: Head):
     ids = [i for i, h in hits.items() if i in g and h.confidence > 0 and h.how not in ("generic", "teeth", "tongue")]
     if len(ids) < 4:
         raise InputError(f"only {len(ids)} feature points were found on the surface", fix="check the mesh is a head")
-    r, t, s = _umeyama(np.array([g[i] for i in ids]), np.array([hits[i].point for i in ids]),
-                       np.array([hits[i].confidence for i in ids]))
-    return lambda p: s * (np.asarray(p) @ r.T) + t
+    return fit_similarity(np.array([g[i] for i in ids]), np.array([hits[i].point for i in ids]),
+                          np.array([hits[i].confidence for i in ids]))
 
 
 def hidden_points(head: Head, hits: dict[str, Hit], generic: Head | None = None,
@@ -1197,8 +1184,7 @@ def _face_misfit(hits: Mapping[str, Hit]) -> float:
     if len(ids) < 6:
         return np.inf
     p, q = np.array([hits[i].point for i in ids]), np.array([g[i] for i in ids])
-    r, t, s = _umeyama(p, q, np.ones(len(ids)))
-    return float(np.sqrt(np.mean(np.sum((s * p @ r.T + t - q) ** 2, axis=1))))
+    return float(np.sqrt(np.mean(np.sum((fit_similarity(p, q)(p) - q) ** 2, axis=1))))
 
 
 def _upside_down(hits: Mapping[str, Hit]) -> bool:
