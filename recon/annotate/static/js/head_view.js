@@ -1,26 +1,12 @@
-// The 3D view: a head (GLB) with its feature points, turned with the mouse. three.js is
-// bundled with the page (static/vendor/three.bundle.js) and loaded the first time the view
-// opens. The view knows nothing about photos: it shows whatever head and points it is
-// given, so that a mesh annotation mode can reuse it.
+// The 3D preview: a head (GLB) with its feature points, turned with the mouse. The view
+// knows nothing about photos: it shows whatever head and points it is given.
 
-let THREE = null;
+import { Stage, three } from "./stage.js";
 
-export async function three() {
-  THREE ??= await import("../vendor/three.bundle.js");
-  return THREE;
-}
-
-export function webglAvailable() {
-  try {
-    const c = document.createElement("canvas");
-    return !!(c.getContext("webgl2") || c.getContext("webgl"));
-  } catch { return false; }
-}
-
-export class HeadView {
+export class HeadView extends Stage {
   /** root: the element to fill; colours: FP group → CSS colour. */
   constructor(root, colours) {
-    this.root = root;
+    super(root);
     this.colours = colours;
     this.ready = null;
     this.head = null;
@@ -28,42 +14,15 @@ export class HeadView {
   }
 
   async _setup() {
-    const T = await three();
-    const canvas = document.createElement("canvas");
-    canvas.className = "head3d";
-    this.root.appendChild(canvas);
-    this.renderer = new T.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
-    this.renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
-    this.renderer.outputColorSpace = T.SRGBColorSpace;
-    this.scene = new T.Scene();
-    this.scene.background = new T.Color(0xf4f4f4);
-    this.scene.add(new T.HemisphereLight(0xffffff, 0x6a6a6a, 2.2));
-    const key = new T.DirectionalLight(0xffffff, 1.6);
-    key.position.set(0.4, 0.6, 1.0);
-    this.scene.add(key);
-    this.camera = new T.PerspectiveCamera(25, 1, 0.01, 20);
-    this.controls = new T.OrbitControls(this.camera, canvas);
-    this.controls.addEventListener("change", () => this.draw());
-    new ResizeObserver(() => this._resize()).observe(this.root);
+    this._build(await three(), "head3d", 0xf4f4f4);
     this._resize();
   }
-
-  _resize() {
-    const w = this.root.clientWidth, h = this.root.clientHeight;
-    if (!w || !h || !this.renderer) return;
-    this.renderer.setSize(w, h, false);
-    this.camera.aspect = w / h;
-    this.camera.updateProjectionMatrix();
-    this.draw();
-  }
-
-  draw() { if (this.renderer) this.renderer.render(this.scene, this.camera); }
 
   /** Show a head: glb (ArrayBuffer) and points3d {id: [x, y, z]} in metres. */
   async show(glb, points3d, groups) {
     this.ready ??= this._setup();
     await this.ready;
-    const T = THREE;
+    const T = await three();
     const gltf = await new Promise((resolve, reject) => new T.GLTFLoader().parse(glb, "", resolve, reject));
     const first = this.head === null;
     if (this.head) this.scene.remove(this.head);

@@ -5,7 +5,8 @@
 import { Api } from "./api.js";
 import { $, Editor } from "./editor.js";
 import * as geo from "./geometry.js";
-import { HeadView, webglAvailable } from "./head_view.js";
+import { HeadView } from "./head_view.js";
+import { webglAvailable } from "./stage.js";
 import { MeshApp } from "./mesh_app.js";
 import { PhotoView } from "./photo_view.js";
 import { bindShortcuts, helpTable } from "./shortcuts.js";

@@ -2,7 +2,7 @@
 // surface; the list of points to check, undo, saving and the shortcuts as in the photo mode.
 
 import { $, Editor } from "./editor.js";
-import { webglAvailable } from "./head_view.js";
+import { webglAvailable } from "./stage.js";
 import { MeshView } from "./mesh_view.js";
 import { bindShortcuts, helpTable } from "./shortcuts.js";
 import { placePoint } from "./store.js";

@@ -2,35 +2,20 @@
 // are dragged over the surface (each move casts a ray from the pointer onto the mesh, so a
 // point is always on it), turned and zoomed with the mouse elsewhere (OrbitControls).
 
-import { three } from "./head_view.js";
+import { Stage, three } from "./stage.js";
 
-export class MeshView {
+export class MeshView extends Stage {
   /** app: the MeshApp (store, catalogue, colours, drag and placement); root: the element to fill. */
   constructor(app, root) {
+    super(root);
     this.app = app;
-    this.root = root;
     this.markers = new Map();
     this.gesture = null;
   }
 
   async show(glb) {
     const T = this.T = await three();
-    const canvas = document.createElement("canvas");
-    canvas.className = "mesh3d";
-    this.root.appendChild(canvas);
-    this.canvas = canvas;
-    this.renderer = new T.WebGLRenderer({ canvas, antialias: true, preserveDrawingBuffer: true });
-    this.renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
-    this.renderer.outputColorSpace = T.SRGBColorSpace;
-    this.scene = new T.Scene();
-    this.scene.background = new T.Color(0x2b2b2b);
-    this.scene.add(new T.HemisphereLight(0xffffff, 0x6a6a6a, 2.2));
-    const key = new T.DirectionalLight(0xffffff, 1.6);
-    key.position.set(0.4, 0.6, 1.0);
-    this.scene.add(key);
-    this.camera = new T.PerspectiveCamera(25, 1, 0.01, 20);
-    this.controls = new T.OrbitControls(this.camera, canvas);
-    this.controls.addEventListener("change", () => this.draw());
+    this._build(T, "mesh3d", 0x2b2b2b);
     this.raycaster = new T.Raycaster();
     const gltf = await new Promise((resolve, reject) => new T.GLTFLoader().parse(glb, "", resolve, reject));
     this.head = gltf.scene;
@@ -48,7 +33,6 @@ export class MeshView {
     this.root.addEventListener("pointerdown", (e) => this._down(e), { capture: true });
     window.addEventListener("pointermove", (e) => this._move(e));
     window.addEventListener("pointerup", (e) => this._up(e));
-    new ResizeObserver(() => this._resize()).observe(this.root);
     this.front();
     this._resize();
   }
@@ -64,17 +48,6 @@ export class MeshView {
     this.controls.update();
     this.draw();
   }
-
-  _resize() {
-    const w = this.root.clientWidth, h = this.root.clientHeight;
-    if (!w || !h || !this.renderer) return;
-    this.renderer.setSize(w, h, false);
-    this.camera.aspect = w / h;
-    this.camera.updateProjectionMatrix();
-    this.draw();
-  }
-
-  draw() { if (this.renderer) this.renderer.render(this.scene, this.camera); }
 
   // --- pointer -----------------------------------------------------------------------
   _ndc(e) {
