@@ -25,11 +25,10 @@ import numpy as np
 from mpeg4.catalogue import FEATURE_POINTS, FP_IDS
 from mpeg4.errors import InputError
 from mpeg4.head import FeaturePointBinding, Head
-from mpeg4.io.atomic import atomic_write
-from mpeg4.io.fdp_json import FdpFile, place_mesh, read_fdp_json, write_fdp_json
+from mpeg4.io.fdp_json import FdpFile, place_mesh, read_fdp_json
 
 from .placement import GUESS_CONFIDENCE
-from .session import LOW_CONFIDENCE, SaveConflict, _colour, _hash
+from .session import LOW_CONFIDENCE, _colour, _hash, _write_file
 
 __all__ = ["MESH_EXTENSIONS", "SNAP_MM", "INSIDE", "MeshSession", "is_mesh"]
 
@@ -315,23 +314,8 @@ class MeshSession:
         fdp = FdpFile(points3d=placed, bindings=bindings, fapu=fapu, frame=self.frame, parts=self.parts,
                       metadata=meta)
         with self._lock:
-            on_disk = _hash(self.fdp_path)
-            if on_disk is not None and on_disk != self._disk and not force:
-                raise SaveConflict(f"{self.fdp_path} changed on disk since this page loaded it")
-            backup = None
-            if on_disk is not None and (self._foreign or on_disk != self._disk):
-                with atomic_write(self.backup_path, "wb") as f:
-                    f.write(self.fdp_path.read_bytes())
-                backup = os.fspath(self.backup_path)
-            try:
-                write_fdp_json(self.fdp_path, fdp)
-            except OSError as e:
-                raise InputError(f"cannot write the annotation file ({e.strerror})", where=self.fdp_path,
-                                 fix="give --fdp a path in a folder you can write to") from None
-            self._foreign = False
-            self._disk = _hash(self.fdp_path)
+            backup = _write_file(self, fdp, force)
             self.points, self.confidence, self.metadata, self.bindings = placed, conf, meta, bindings
-            self.saved_at = self.fdp_path.stat().st_mtime
         return {"path": os.fspath(self.fdp_path), "saved_at": self.saved_at, "backup": backup,
                 "points": {VIEW: len(placed)}}
 

@@ -119,6 +119,32 @@ def _hash(path: Path) -> str | None:
         return None
 
 
+def _write_file(session, fdp: FdpFile, force: bool) -> str | None:
+    """Write ``fdp`` to ``session.fdp_path`` as both sessions save (the caller holds its lock).
+
+    Refuses (:class:`SaveConflict`) a file changed on disk since the session read or wrote
+    it, unless ``force``; keeps what was there before as ``.bak`` when it was not this
+    session's own last write; writes atomically. Returns the backup's path, or None.
+    """
+    on_disk = _hash(session.fdp_path)
+    if on_disk is not None and on_disk != session._disk and not force:
+        raise SaveConflict(f"{session.fdp_path} changed on disk since this page loaded it")
+    backup = None
+    if on_disk is not None and (session._foreign or on_disk != session._disk):
+        with atomic_write(session.backup_path, "wb") as f:
+            f.write(session.fdp_path.read_bytes())
+        backup = os.fspath(session.backup_path)
+    try:
+        write_fdp_json(session.fdp_path, fdp)
+    except OSError as e:
+        raise InputError(f"cannot write the annotation file ({e.strerror})", where=session.fdp_path,
+                         fix="give --fdp a path in a folder you can write to") from None
+    session._foreign = False
+    session._disk = _hash(session.fdp_path)
+    session.saved_at = session.fdp_path.stat().st_mtime
+    return backup
+
+
 def _colour(rgb) -> str:
     return "#" + "".join(f"{c:02x}" for c in rgb)
 
@@ -282,28 +308,13 @@ class AnnotationSession:
         self.wait_ready()
         views = self.parse_views(data)
         with self._lock:
-            on_disk = _hash(self.fdp_path)
-            if on_disk is not None and on_disk != self._disk and not force:
-                raise SaveConflict(f"{self.fdp_path} changed on disk since this page loaded it")
             fdp = FdpFile(views=views, points3d=self._base.points3d, bindings=self._base.bindings,
                           texcoords=self._base.texcoords, fapu=self._base.fapu,
                           metadata=dict(self._base.metadata), version=self._base.version)
             fdp.metadata["annotate"] = {"initialised_from": self.initialisation.source,
                                         "photos": {n: self._image_name(n) for n in VIEWS}}
-            backup = None
-            if on_disk is not None and (self._foreign or on_disk != self._disk):
-                with atomic_write(self.backup_path, "wb") as f:
-                    f.write(self.fdp_path.read_bytes())
-                backup = os.fspath(self.backup_path)
-            try:
-                write_fdp_json(self.fdp_path, fdp)
-            except OSError as e:
-                raise InputError(f"cannot write the annotation file ({e.strerror})", where=self.fdp_path,
-                                 fix="give --fdp a path in a folder you can write to") from None
-            self._foreign = False
-            self._disk = _hash(self.fdp_path)
+            backup = _write_file(self, fdp, force)
             self.views = views
-            self.saved_at = self.fdp_path.stat().st_mtime
         return {"path": os.fspath(self.fdp_path), "saved_at": self.saved_at, "backup": backup,
                 "points": {n: len(v.points) for n, v in views.items()}}
 
