@@ -1,4 +1,5 @@
-"""Shared fixtures: the Khronos glTF validator, the ICT FaceKit test data, the notebooks' report."""
+"""Shared fixtures: the Khronos glTF validator, the ICT FaceKit test data, whether the mesh
+marking's 2D detector is installed, the notebooks' report."""
 
 import json
 import shutil
@@ -25,6 +26,19 @@ def validate_gltf():
         return json.loads(out.stdout)
 
     return run
+
+
+@pytest.fixture(scope="session")
+def landmark_detector_available() -> bool:
+    """Whether ``fmc mark`` has its 2D detector here (recon.landmarks with mediapipe)."""
+    from mpeg4.errors import InputError
+    from recon.mark3d import landmark_detector
+
+    try:
+        landmark_detector()
+    except InputError:
+        return False
+    return True
 
 
 @pytest.fixture(scope="session")

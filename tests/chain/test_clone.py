@@ -8,7 +8,6 @@ import pytest
 pytest.importorskip("fast_simplification", reason="fast-simplification is not installed (pip install '.[test]')")
 
 from chain import clone_onto, target_head  # noqa: E402
-from mpeg4.errors import InputError  # noqa: E402
 from mpeg4.generic_head import generic_head_path  # noqa: E402
 from recon.mark3d import mark_file  # noqa: E402
 from recon.synthetic import perfect_detector  # noqa: E402
@@ -56,12 +55,12 @@ def test_fmc_itself_imports_no_recon():
     assert out.returncode == 0, out.stderr
 
 
-def test_clone_onto_an_unmarked_mesh_without_a_detector_is_one_line(mesh, tmp_path):
+def test_clone_onto_an_unmarked_mesh_without_a_detector_is_one_line(mesh, tmp_path, landmark_detector_available):
     import os
     import subprocess
     import sys
 
-    if _detector_available():
+    if landmark_detector_available:
         pytest.skip("recon.landmarks and mediapipe are installed: the target would be marked")
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     out = subprocess.run([sys.executable, "-m", "chain", "clone", "--source", str(generic_head_path()), "--target",
@@ -71,11 +70,3 @@ def test_clone_onto_an_unmarked_mesh_without_a_detector_is_one_line(mesh, tmp_pa
     assert "no 2D landmark detector" in out.stderr and "recon annotate" in out.stderr
 
 
-def _detector_available() -> bool:
-    from recon.mark3d import landmark_detector
-
-    try:
-        landmark_detector()
-    except InputError:
-        return False
-    return True

@@ -163,7 +163,7 @@ def test_place_mesh_regroups_and_moves(tmp_path):
         place_mesh(head, None, {"eye_l": PartSource("Tail")})
 
 
-def test_cli_errors(meshes, tmp_path):
+def test_cli_errors(meshes, tmp_path, landmark_detector_available):
     from chain.cli import app
 
     path = _mesh_file(tmp_path, trimesh.creation.box((0.2, 0.2, 0.2)).subdivide().subdivide(), "box.obj")
@@ -171,26 +171,16 @@ def test_cli_errors(meshes, tmp_path):
     assert all(c in help_text for c in ("mark", "clone", "author", "info"))
     out = CliRunner().invoke(app, ["mark", str(path), "--up", "+q"])
     assert isinstance(out.exception, InputError) and "unknown axis '+q' for --up" in str(out.exception)
-    if not _detector_available():
+    if not landmark_detector_available:
         out = CliRunner().invoke(app, ["mark", str(meshes["ply"].path)])
         assert "no 2D landmark detector" in str(out.exception) and "recon annotate" in str(out.exception)
 
 
-def _detector_available() -> bool:
-    from recon.mark3d import landmark_detector
-
-    try:
-        landmark_detector()
-    except InputError:
-        return False
-    return True
-
-
 @pytest.mark.slow
-def test_the_photo_detector_on_the_renders(meshes):
+def test_the_photo_detector_on_the_renders(meshes, landmark_detector_available):
     """The final code path: recon.landmarks.detect on the renders of an untextured mesh, the
     points it cannot see there placed by the fitted generic head."""
-    if not _detector_available():
+    if not landmark_detector_available:
         pytest.skip("recon.landmarks or mediapipe is not installed")
     mf = meshes["ply"]
     result = mark(mf.path)
