@@ -48,26 +48,9 @@ def synthetic_people(folder: Path, n: int, size: tuple[int, int], texture_size: 
 
 
 def example_people(folder: Path, n: int, size: tuple[int, int]) -> list[dict]:
-    from PIL import Image
+    from recon.example import scaled_example
 
-    from mpeg4.io import read_fdp_json, write_fdp_json
-    from recon.example import EXAMPLE_DIR, EXAMPLE_FDP, example_camera
-
-    cam = example_camera()
-    rows = []
-    for k in range(n):
-        scale = size[1] / 1280 * (1 + 0.03 * k)
-        pid = f"person{k:02d}"
-        fdp = read_fdp_json(EXAMPLE_FDP)
-        for name, view in fdp.views.items():
-            w, h = round(view.width * scale), round(view.height * scale)
-            Image.open(EXAMPLE_DIR / view.image).resize((w, h), Image.LANCZOS).save(folder / f"{pid}_{name}.png")
-            view.points = {i: p * [w / view.width, h / view.height] for i, p in view.points.items()}
-            view.image, view.width, view.height = f"{pid}_{name}.png", w, h
-        write_fdp_json(folder / f"{pid}.fdp.json", fdp)
-        rows.append({"id": pid, "front": f"{pid}_front.png", "side": f"{pid}_side.png", "fdp": f"{pid}.fdp.json",
-                     "ipd": cam["ipd_mm"], "focal": cam["focal_px"] * scale})
-    return rows
+    return [scaled_example(folder, f"person{k:02d}", size[1] / 1280 * (1 + 0.03 * k)) for k in range(n)]
 
 
 def memory_lines(name: str, report) -> list[str]:

@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["run_example", "EXAMPLE_SENTENCE", "EXAMPLE_DIR", "EXAMPLE_FDP"]
+__all__ = ["run_example", "scaled_example", "example_camera", "EXAMPLE_SENTENCE", "EXAMPLE_DIR", "EXAMPLE_FDP"]
 
 #: What the example head says.
 EXAMPLE_SENTENCE = "Hello! I am a talking head, and I speak MPEG-4."
@@ -31,6 +31,35 @@ def example_camera() -> dict:
     """What the example's photos were taken with: ``focal_px`` and ``ipd_mm``."""
     meta = json.loads(EXAMPLE_FDP.read_text(encoding="utf-8")).get("metadata", {}).get("synthetic", {})
     return {"focal_px": meta.get("focal_px"), "ipd_mm": meta.get("ipd_mm", 63.0)}
+
+
+def scaled_example(folder: str | os.PathLike, pid: str, scale: float) -> dict:
+    """The embedded example resized, as one more person for ``recon batch``.
+
+    Writes ``<pid>_front.png``, ``<pid>_side.png`` (the photos scaled by ``scale``) and
+    ``<pid>.fdp.json`` (the points scaled with them) into ``folder``.
+
+    Returns
+    -------
+    dict
+        The person's manifest row: ``id``, ``front``, ``side``, ``fdp`` (names in
+        ``folder``), ``ipd`` (mm) and ``focal`` (pixels, scaled with the photos).
+    """
+    from PIL import Image
+
+    from mpeg4.io import read_fdp_json, write_fdp_json
+
+    folder = Path(folder)
+    cam = example_camera()
+    fdp = read_fdp_json(EXAMPLE_FDP)
+    for name, view in fdp.views.items():
+        w, h = round(view.width * scale), round(view.height * scale)
+        Image.open(EXAMPLE_DIR / view.image).resize((w, h), Image.LANCZOS).save(folder / f"{pid}_{name}.png")
+        view.points = {i: p * [w / view.width, h / view.height] for i, p in view.points.items()}
+        view.image, view.width, view.height = f"{pid}_{name}.png", w, h
+    write_fdp_json(folder / f"{pid}.fdp.json", fdp)
+    return {"id": pid, "front": f"{pid}_front.png", "side": f"{pid}_side.png", "fdp": f"{pid}.fdp.json",
+            "ipd": cam["ipd_mm"], "focal": round(cam["focal_px"] * scale, 6)}
 
 
 def run_example(out_dir: str | os.PathLike, progress: Callable[[str], None] | None = None,

@@ -12,30 +12,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from PIL import Image
 
 from mpeg4 import InputError
 from mpeg4.io import load_head, read_fdp_json, write_fdp_json
 from recon.batch import NO_LANDMARKS, RECORD_NAME, REPORT_NAME, build_person, read_manifest, run_batch
-from recon.example import EXAMPLE_DIR, EXAMPLE_FDP, example_camera
+from recon.example import scaled_example
 
 ROOT = Path(__file__).resolve().parents[2]
 CREATED = "2026-01-01T00:00:00Z"  # the provenance time of every test head: runs compare byte for byte
 SCALES = (0.25, 0.27, 0.29, 0.31)  # the example's photos made small (256 px and up), four "people"
-
-
-def _person(folder: Path, pid: str, scale: float) -> dict:
-    """The embedded example at ``scale``: photos, annotations and the manifest row."""
-    cam = example_camera()
-    fdp = read_fdp_json(EXAMPLE_FDP)
-    for name, view in fdp.views.items():
-        w, h = round(view.width * scale), round(view.height * scale)
-        Image.open(EXAMPLE_DIR / view.image).resize((w, h), Image.LANCZOS).save(folder / f"{pid}_{name}.png")
-        view.points = {i: p * [w / view.width, h / view.height] for i, p in view.points.items()}
-        view.image, view.width, view.height = f"{pid}_{name}.png", w, h
-    write_fdp_json(folder / f"{pid}.fdp.json", fdp)
-    return {"id": pid, "front": f"{pid}_front.png", "side": f"{pid}_side.png", "fdp": f"{pid}.fdp.json",
-            "ipd": cam["ipd_mm"], "focal": round(cam["focal_px"] * scale, 6)}
 
 
 def _impossible(folder: Path, row: dict) -> dict:
@@ -64,7 +49,7 @@ def _write_csv(path: Path, rows: list[dict]) -> Path:
 def people(tmp_path_factory):
     """Six rows: four people, a missing photo, impossible points."""
     folder = tmp_path_factory.mktemp("people")
-    good = [_person(folder, f"p{k + 1}", s) for k, s in enumerate(SCALES)]
+    good = [scaled_example(folder, f"p{k + 1}", s) for k, s in enumerate(SCALES)]
     rows = [good[0], good[1], {**good[2], "id": "missing", "front": "nobody_front.png"}, good[2],
             _impossible(folder, good[0]), good[3]]
     return folder, _write_csv(folder / "six.csv", rows), good
