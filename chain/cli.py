@@ -10,6 +10,7 @@ from pathlib import Path
 
 import typer
 
+from fmc.cli import ALIGNMENT_OPTION, ANTIALIAS_OPTION, TRIANGULATION_OPTION
 from fmc.cli import app as fmc_app
 from mpeg4.errors import InputError
 from mpeg4.render import RendererUnavailable
@@ -53,14 +54,8 @@ def clone_cmd(source: Path = typer.Option(..., "--source", help="Head with motio
                                                                 "this project, or a mesh with its MESH.fdp.json), or "
                                                                 "any head mesh, marked first (fmc mark)."),
               out: Path = typer.Option(..., "-o", "--out", help="Target with the cloned motion (.glb)."),
-              antialias: float = typer.Option(
-                  None, help="Radius of the anti-aliasing disc in the alignment space (0: none; default, when the "
-                             "target is sparser than the source: 0.04 of each target vertex's mean edge length there)."),
-              alignment: str = typer.Option("surface", help="How the points between the feature points follow them: "
-                                                            "surface (bi-harmonic over each mesh) or affine (over the "
-                                                            "feature-point triangles)."),
-              triangulation: str = typer.Option("mpeg4", help="Feature-point triangulation: mpeg4 (shipped) or "
-                                                              "delaunay.")) -> None:
+              antialias: float = ANTIALIAS_OPTION, alignment: str = ALIGNMENT_OPTION,
+              triangulation: str = TRIANGULATION_OPTION) -> None:
     """Clone morph targets and Facial Animation Tables from one head onto another (Pandzic's
     Facial Motion Cloning; see the README for the measured accuracy). A target without feature
     points is marked first (fmc mark), with a warning that its points are unreviewed."""

@@ -114,18 +114,23 @@ def animate(head: Path = typer.Argument(..., help="Head with animation tables (.
         typer.echo(f"{kind}: {path}")
 
 
+#: The cloning's options, shared with the ``fmc`` command's clone onto any mesh (chain.cli).
+ANTIALIAS_OPTION = typer.Option(
+    None, "--antialias", help="Radius of the anti-aliasing disc in the alignment space (0: none; default, when the "
+                              "target is sparser than the source: 0.04 of each target vertex's mean edge length there).")
+ALIGNMENT_OPTION = typer.Option("surface", "--alignment", help="How the points between the feature points follow "
+                                                               "them: surface (bi-harmonic over each mesh) or affine "
+                                                               "(over the feature-point triangles).")
+TRIANGULATION_OPTION = typer.Option("mpeg4", "--triangulation", help="Feature-point triangulation: mpeg4 (shipped) "
+                                                                      "or delaunay.")
+
+
 @app.command("clone")
 def clone_cmd(source: Path = typer.Option(..., "--source", help="Head with motion: morph targets and/or FATs (.glb)."),
               target: Path = typer.Option(..., "--target", help="Head with feature points (.glb, or .obj + fdp.json)."),
               out: Path = typer.Option(..., "-o", "--out", help="Target with the cloned motion (.glb)."),
-              antialias: float = typer.Option(
-                  None, help="Radius of the anti-aliasing disc in the alignment space (0: none; default, when the "
-                             "target is sparser than the source: 0.04 of each target vertex's mean edge length there)."),
-              alignment: str = typer.Option("surface", help="How the points between the feature points follow them: "
-                                                            "surface (bi-harmonic over each mesh) or affine (over the "
-                                                            "feature-point triangles)."),
-              triangulation: str = typer.Option("mpeg4", help="Feature-point triangulation: mpeg4 (shipped) or "
-                                                              "delaunay.")) -> None:
+              antialias: float = ANTIALIAS_OPTION, alignment: str = ALIGNMENT_OPTION,
+              triangulation: str = TRIANGULATION_OPTION) -> None:
     """Clone morph targets and Facial Animation Tables from one head onto another (Pandzic's
     Facial Motion Cloning; see the README for the measured accuracy)."""
     from fmc.clone import clone
