@@ -9,10 +9,6 @@ import io
 import json
 import os
 import re
-import select
-import signal
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -42,28 +38,6 @@ def photos():
         if not p.exists():
             pytest.skip(f"the example photo {p} is missing (python3 scripts/make_example_photos.py)")
     return paths
-
-
-def _start(photos, fdp, *flags):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-m", "recon", "annotate", *map(str, photos), "--fdp", str(fdp),
-                             "--no-browser", *flags], cwd=ROOT, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-    ready, _, _ = select.select([proc.stdout], [], [], 60)
-    line = proc.stdout.readline() if ready else ""
-    if not line.startswith("annotate: "):
-        proc.kill()
-        pytest.fail(f"recon annotate did not start: {line!r} {proc.stderr.read()}")
-    return proc, line.split(" ", 1)[1].strip()
-
-
-def _stop(proc):
-    proc.send_signal(signal.SIGINT)
-    try:
-        proc.wait(10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
 
 
 @pytest.fixture(scope="module")
@@ -119,11 +93,11 @@ def _midline_reflection(front, exclude):
     return lambda p: 2 * (c + ((p - c) @ d) * d) - p
 
 
-def test_drag_guides_mirror_undo_redo_save_reload(photos, browser, tmp_path):
+def test_drag_guides_mirror_undo_redo_save_reload(photos, browser, tmp_path, annotate_cli):
     fdp = tmp_path / "head.fdp.json"
     # The generic head's points, whose heights agree between the photos, so that what the
     # 3D preview refuses below is the drag alone (automatic points are tested elsewhere).
-    proc, url = _start(photos, fdp, "--no-detect")
+    proc, url = annotate_cli.start(*photos, "--fdp", fdp, "--no-detect")
     ARTIFACTS.mkdir(exist_ok=True)
     try:
         page = browser.new_page(viewport={"width": 1400, "height": 860})
@@ -281,5 +255,5 @@ def test_drag_guides_mirror_undo_redo_save_reload(photos, browser, tmp_path):
         assert _view(page, "front")[0] == pytest.approx(scale)
         assert errors == []
     finally:
-        _stop(proc)
+        annotate_cli.stop(proc)
     assert proc.returncode == 0, proc.stderr.read()

@@ -6,10 +6,6 @@ surface, undoes and redoes, saves, reloads, and checks the saved point lies on t
 """
 
 import os
-import select
-import signal
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -44,27 +40,6 @@ def marked(remeshed, tmp_path_factory):
     return mesh, fdp
 
 
-def _start(mesh, fdp):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-m", "recon", "annotate", str(mesh), "--fdp", str(fdp), "--no-browser"],
-                            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    ready, _, _ = select.select([proc.stdout], [], [], 60)
-    line = proc.stdout.readline() if ready else ""
-    if not line.startswith("annotate: "):
-        proc.kill()
-        pytest.fail(f"recon annotate did not start: {line!r} {proc.stderr.read()}")
-    return proc, line.split(" ", 1)[1].strip()
-
-
-def _stop(proc):
-    proc.send_signal(signal.SIGINT)
-    try:
-        proc.wait(10)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait()
-
-
 def _point(page, fp_id):
     return np.array(page.evaluate(f"() => annotate.store.point('mesh', '{fp_id}')"))
 
@@ -74,10 +49,10 @@ def _screen(page, fp_id):
 
 
 @pytest.mark.slow
-def test_drag_a_point_over_the_mesh_save_reload(marked):
+def test_drag_a_point_over_the_mesh_save_reload(marked, annotate_cli):
     mesh, fdp = marked
     before = read_fdp_json(fdp).points3d
-    proc, url = _start(mesh, fdp)
+    proc, url = annotate_cli.start(mesh, "--fdp", fdp)
     ARTIFACTS.mkdir(exist_ok=True)
     try:
         with sync_api.sync_playwright() as p:
@@ -139,5 +114,5 @@ def test_drag_a_point_over_the_mesh_save_reload(marked):
             assert errors == []
             browser.close()
     finally:
-        _stop(proc)
+        annotate_cli.stop(proc)
     assert proc.returncode == 0, proc.stderr.read()
