@@ -6,7 +6,9 @@ so that the FAP's feature point moves along the FAP's axis by ``value × FAPU`` 
 feature points of other regions, and those on the other side of the face, stay still.
 Bidirectional FAPs get one combination per direction (interval borders
 ``[-value, 0, value]``), unidirectional ones one (``[0, value]``). Rotations are
-FaceDefTransforms: the head about 7.1 and the eyeballs about their centres.
+FaceDefTransforms: the head about 7.1 and the eyeballs about their centres. The brow
+raisers 31-36, one point each where the shapes raise a whole brow, cut the sculpted raise
+into pieces by a smooth partition across the brows (:func:`brow_partition`).
 
 Where no combination of shapes does the job (the ears, the nose wings, the tongue when
 the shapes never move it), the FAP falls back to a smooth local displacement field around
@@ -121,7 +123,8 @@ class FapFit:
     leak : float
         Largest motion of an unrelated feature point relative to the FAP's own motion.
     weights : dict of str to float
-        Shape name → weight (positive direction), for ``route == "shapes"``.
+        Shape name → weight (positive direction), for ``route == "shapes"``; for the brow
+        raisers, the weight where the FAP's piece of the raise is whole.
     """
 
     fap: int
