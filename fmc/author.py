@@ -6,7 +6,9 @@ so that the FAP's feature point moves along the FAP's axis by ``value × FAPU`` 
 feature points of other regions, and those on the other side of the face, stay still.
 Bidirectional FAPs get one combination per direction (interval borders
 ``[-value, 0, value]``), unidirectional ones one (``[0, value]``). Rotations are
-FaceDefTransforms: the head about 7.1 and the eyeballs about their centres.
+FaceDefTransforms: the head about 7.1 and the eyeballs about their centres. The brow
+raisers 31-36, one point each where the shapes raise a whole brow, cut the sculpted raise
+into pieces by a smooth partition across the brows (:func:`brow_partition`).
 
 Where no combination of shapes does the job (the ears, the nose wings, the tongue when
 the shapes never move it), the FAP falls back to a smooth local displacement field around
@@ -32,6 +34,7 @@ from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
 from mpeg4.head import Head, SparseDisplacement
 
 __all__ = ["REGIONS", "ADJACENT", "region_of", "unrelated", "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit",
+           "BROW_POINTS", "BROW_RAISE_SHAPES", "brow_partition",
            "author_from_shapes",
            "HIGH_LEVEL_SHAPES", "author_high_level"]
 
@@ -61,6 +64,13 @@ def region_of(fp_id: str) -> str:
 
 # The jaw FAPs use the sculpted jaw shapes alone (the chin follows an arc, not the axis).
 _JAW_SHAPES = {3: ("jawOpen",), 14: ("jawForward",), 15: ("jawLeft", "jawRight")}
+
+#: The brow points across the face, right to left (outer, middle, inner on each side), and
+# the FAP raising each.
+BROW_POINTS = ("4.6", "4.4", "4.2", "4.1", "4.3", "4.5")
+_BROW_RAISE = {31: "4.1", 32: "4.2", 33: "4.3", 34: "4.4", 35: "4.5", 36: "4.6"}
+#: The sculpted shapes that together raise both brows whole.
+BROW_RAISE_SHAPES = ("browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R")
 
 # Lip points: which lip each lies on (the other lip must not follow it).
 _UPPER_LIP = {"2.2", "2.6", "2.7", "8.1", "8.5", "8.6", "8.9", "8.10"}
@@ -113,7 +123,8 @@ class FapFit:
     leak : float
         Largest motion of an unrelated feature point relative to the FAP's own motion.
     weights : dict of str to float
-        Shape name → weight (positive direction), for ``route == "shapes"``.
+        Shape name → weight (positive direction), for ``route == "shapes"``; for the brow
+        raisers, the weight where the FAP's piece of the raise is whole.
     """
 
     fap: int
@@ -256,9 +267,15 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
         bad = unrelated(fp_id, ids)
         meshes_by_sign, route, err_all, leak_all, weights = {}, "shapes", 0.0, 0.0, None
         jaw = [s for s in _JAW_SHAPES.get(n, ()) if s in head.morph_targets]
+        brow = n in _BROW_RAISE and all(s in head.morph_targets for s in BROW_RAISE_SHAPES) \
+            and all(i in head.feature_points for i in BROW_POINTS)
         for sign in signs:
             goal = sign * value * unit * axis
-            if jaw:
+            if brow:
+                disp, fit_err, leak, scale = _brow_piece(head, n, goal, ids, k, bad)
+                w = np.zeros(len(names))
+                w[[names.index(s) for s in BROW_RAISE_SHAPES]] = scale
+            elif jaw:
                 # The jaw turns as it opens: keep the sculpted motion, scaled so the chin
                 # moves by the FAP's amount along its axis, whatever it does across it.
                 cols = [names.index(s) for s in jaw]
@@ -282,6 +299,85 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
         fat.add(_mesh_table(head, n, meshes_by_sign, value, unit))
         report.append(FapFit(n, route, err_all, leak_all, weights))
     return fat, report
+
+
+def brow_partition(head: Head, x: np.ndarray) -> np.ndarray:
+    """(N, 6) smooth partition of unity across the brows, one column per :data:`BROW_POINTS`.
+
+    Column j is 1 at the x of brow point j, 0 at the x of its neighbours, and blends
+    between neighbours by the quintic smoothstep ``6t⁵ − 15t⁴ + 10t³`` (C², so the pieces
+    are as smooth as the field they cut); beyond the outer points the outer columns stay 1.
+    The columns sum to 1 everywhere, so equal FAP values give back the whole field.
+
+    Parameters
+    ----------
+    head : Head
+        With the brow points.
+    x : (N,) float
+        Left-right coordinates, metres (the face's left is +x).
+    """
+    nodes = np.array([head.fp_position(i)[0] for i in BROW_POINTS])
+    if np.any(np.diff(nodes) <= 0):
+        raise InputError("the brow points are not ordered across the face (4.6, 4.4, 4.2, 4.1, 4.3, 4.5 from "
+                         f"right to left); their x are {', '.join(f'{v * 1e3:.1f}' for v in nodes)} mm",
+                         fix="check the brow points (fmc mark)")
+    x = np.asarray(x, dtype=np.float64)
+    out = np.zeros((len(x), len(nodes)))
+    for j in range(len(nodes) - 1):
+        t = np.clip((x - nodes[j]) / (nodes[j + 1] - nodes[j]), 0.0, 1.0)
+        step = t ** 3 * (10 - 15 * t + 6 * t ** 2)
+        inside = (x >= nodes[j]) & (x <= nodes[j + 1])
+        out[inside, j] = 1 - step[inside]
+        out[inside, j + 1] = step[inside]
+    out[x < nodes[0], 0] = 1.0
+    out[x > nodes[-1], -1] = 1.0
+    return out
+
+
+def _brow_piece(head, n, goal, ids, k, bad):
+    """A brow-raise FAP from the sculpted whole-brow raise, cut by :func:`brow_partition`.
+
+    The sculpted shapes raise each brow whole (inner, outer), while FAPs 31-36 move one of
+    three points per brow. A combination of whole shapes cannot move one point alone
+    without large opposed weights (raise against lower), and a local bump scaled to the
+    FAP's amount folds the forehead where two of them overlap. Here the summed raise of
+    :data:`BROW_RAISE_SHAPES` is cut into six pieces by a smooth partition of unity across
+    the brows, so each FAP moves its own point and fades to nothing at its neighbours, and
+    all six together give back the sculpted raise. The FAP is a vertical displacement
+    (reference section 3): each piece keeps the field's vertical component, scaled so its
+    point moves by ``goal``. (The sculpted brow also slides back and out over the skull, up
+    to a third of its rise at the outer point, and its forehead wrinkles lie mostly in
+    depth; both are left out: the point must move straight up, and wrinkles driven to the
+    FAP's full range, three times their sculpted depth, fold the skin.) The lowering
+    direction is the same piece reversed (the sculpted frown also pulls the brow inwards,
+    which is FAPs 37/38, and barely lowers the outer brow).
+
+    Returns the displacement, its FP error and leak (as :func:`_solve`) and the scale of
+    the shapes where the piece is whole.
+    """
+    fp_id = _BROW_RAISE[n]
+    part = head.feature_points[fp_id].part
+    nv = head.parts[part].n_vertices
+    field = np.zeros((nv, 3))
+    for name in BROW_RAISE_SHAPES:
+        d = head.morph_targets[name].get(part)
+        if d is not None:
+            field[d.indices] += d.vectors
+    cut = brow_partition(head, head.parts[part].vertices[:, 0])[:, BROW_POINTS.index(fp_id)]
+    piece = np.zeros((nv, 3))
+    piece[:, 1] = cut * field[:, 1]
+    unit = {part: SparseDisplacement.from_dense(piece)}
+    along = float(_fp_motion(head, unit, [fp_id])[0] @ goal) / float(goal @ goal)
+    if abs(along) <= 1e-9:
+        return {}, np.inf, np.inf, 0.0
+    scale = 1.0 / along
+    # Motions under 10 µm at the authoring value are dropped, as in :func:`_combine`.
+    disp = {part: SparseDisplacement.from_dense(piece * scale, tol=1e-5)}
+    motion = _fp_motion(head, disp, ids)
+    g = np.linalg.norm(goal)
+    err = float(np.linalg.norm(motion[k] - goal) / g)
+    leak = float(np.linalg.norm(motion[bad], axis=1).max(initial=0) / g)
+    return disp, err, leak, abs(scale)
 
 
 def _solve(head, names, a, ids, k, bad, goal):

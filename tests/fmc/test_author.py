@@ -156,3 +156,84 @@ def test_pupils_dilate_by_the_fapu(authored):
         rim = np.linalg.norm(moved[part] - neutral[part], axis=1).max()
         assert rim == pytest.approx(0.5 * 512 * head.fapu.IRISD0 / 1024, rel=1e-9)  # the diameter grows by 512 IRISD
         assert np.linalg.norm(head.fp_position(fp, moved) - head.fp_position(fp)) < 0.1 * rim
+
+
+def _forehead_creases(head, disp):
+    """Largest growth of the fold angle between neighbouring forehead triangles (degrees)
+    and smallest edge length ratio there, under the skin displacement ``disp``."""
+    skin = head.skin
+    v, t = skin.vertices, skin.triangles
+    fp = head.fp_position
+    # Above the lid folds, below the hairline, between the outer brows, on the face's front.
+    fore = ((v[:, 1] > fp("3.13")[1] + 0.004) & (v[:, 1] < fp("11.1")[1]) & (np.abs(v[:, 0]) < fp("4.5")[0])
+            & (v[:, 2] > fp("11.3")[2]))
+    t = t[fore[t].all(axis=1)]
+    edges = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]), axis=1)
+    tri = np.tile(np.arange(len(t)), 3)
+    order = np.lexsort(edges.T[::-1])
+    edges, tri = edges[order], tri[order]
+    same = (edges[1:] == edges[:-1]).all(axis=1)
+    pairs = np.stack([tri[:-1][same], tri[1:][same]], axis=1)  # triangles sharing an inner edge
+
+    def fold(x):
+        n = np.cross(x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]])
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        return np.degrees(np.arccos(np.clip((n[pairs[:, 0]] * n[pairs[:, 1]]).sum(axis=1), -1, 1)))
+
+    e = edges[np.r_[True, ~same]]
+    ratio = np.linalg.norm((v + disp)[e[:, 0]] - (v + disp)[e[:, 1]], axis=1) / np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1)
+    return float((fold(v + disp) - fold(v)).max()), float(ratio.min())
+
+
+def test_brow_raises_together_do_not_crease_the_forehead(authored):
+    # FAPs 31-34 at 200 drew a wavy crease across the forehead (fold growth 50 degrees, an
+    # edge squeezed to 27 % of its length) when each was a bump of its own: where two
+    # overlapped they moved the skin twice. Measured against the vertical part of the
+    # sculpted brow raise moving the inner brow as far (9 degrees, 59 %).
+    from fmc.author import BROW_RAISE_SHAPES
+
+    head, report = authored
+    assert all(report[n].route == "shapes" and report[n].error < 0.01 for n in range(31, 37))
+    neutral = {n: p.vertices for n, p in head.parts.items()}
+    raise_ = sum(head.morph_targets[s]["skin"].dense(head.skin.n_vertices) for s in BROW_RAISE_SHAPES)
+    raise_[:, [0, 2]] = 0.0
+    b = head.feature_points["4.1"]
+    # All six at 200 folded by 162 degrees; all six at -200 by 32 degrees, squeezing to 40 %.
+    for values in ({31: 200.0, 32: 200.0, 33: 200.0, 34: 200.0}, dict.fromkeys(range(31, 37), 200.0),
+                   dict.fromkeys(range(31, 37), -200.0)):
+        ours = apply_fat(head.fat, neutral, values, head.fapu)["skin"] - neutral["skin"]
+        sculpted = raise_ * (ours[list(b.vertices), 1] @ b.weights / (raise_[list(b.vertices), 1] @ b.weights))
+        fold, squeeze = _forehead_creases(head, ours)
+        fold_ref, squeeze_ref = _forehead_creases(head, sculpted)
+        assert fold <= 1.25 * fold_ref and fold < 12.0, (values, fold, fold_ref)
+        assert squeeze >= 0.9 * squeeze_ref and squeeze > 0.5, (values, squeeze, squeeze_ref)
+
+
+def test_brow_partition_is_smooth_and_sums_to_one():
+    from fmc.author import BROW_POINTS, brow_partition
+
+    head = load_generic_head()
+    x = np.linspace(-0.09, 0.09, 1801)
+    w = brow_partition(head, x)
+    np.testing.assert_allclose(w.sum(axis=1), 1.0, atol=1e-12)
+    at = brow_partition(head, [head.fp_position(i)[0] for i in BROW_POINTS])
+    np.testing.assert_allclose(at, np.eye(6), atol=1e-12)  # each FAP leaves the other brow points still
+    slope = np.abs(np.diff(w, axis=0)).max() / (x[1] - x[0])
+    gap = np.diff([head.fp_position(i)[0] for i in BROW_POINTS]).min()
+    assert slope <= 1.875 / gap * 1.01  # the quintic step's steepest slope, nothing sharper
+    np.testing.assert_allclose(w[::-1], w[:, ::-1], atol=1e-9)  # mirrored across the face
+
+
+@pytest.mark.parametrize("key", [(1, v) for v in range(1, 15)] + [(2, e) for e in (1, 2, 3, 4, 6)])
+def test_high_level_poses_open_the_mouth_symmetrically(high_level, key):
+    # Surprise and viseme A look lopsided in a three-quarter view (the far side's teeth show
+    # through the opening); the motion itself is mirror-symmetric. Disgust (2, 5) is not.
+    head = high_level
+    base, pose = _pose(head, (1, 0)), _pose(head, key)
+    mirror = np.array([-1.0, 1.0, 1.0])
+    scale = max(np.linalg.norm(pose[i] - base[i]) for i in ("8.2", "2.3", "8.7", "8.8", "2.8", "2.9"))
+    for left, right in (("8.6", "8.5"), ("2.8", "2.9"), ("8.7", "8.8"), ("2.6", "2.7"), ("8.3", "8.4"),
+                        ("2.4", "2.5")):
+        dl, dr = pose[left] - base[left], (pose[right] - base[right]) * mirror
+        assert np.linalg.norm(dl - dr) <= 0.02 * max(scale, 1e-3), (key, left, right, dl, dr)
+    assert abs(pose["8.2"][0] - base["8.2"][0]) <= 0.02 * max(scale, 1e-3)  # the lower lip's middle stays centred
