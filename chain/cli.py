@@ -1,6 +1,7 @@
 """The ``recon`` and ``fmc`` commands.
 
-``recon``: :mod:`recon.cli`'s commands, with a ``batch`` whose rows may end by cloning motion
+``recon``: :mod:`recon.cli`'s commands, with an ``example`` that runs the whole chain
+(:func:`chain.example.run_example`) and a ``batch`` whose rows may end by cloning motion
 onto the head (:func:`chain.animatable.clone_step`). ``fmc``: :mod:`fmc.cli`'s commands,
 ``fmc mark``, and ``fmc clone`` onto any mesh. Each command wraps one public function.
 """
@@ -19,6 +20,7 @@ from fmc.cli import app as fmc_app
 from mpeg4.errors import InputError
 from mpeg4.render import RendererUnavailable
 from recon import cli as recon_cli
+from recon.cli import EXAMPLE_OUT_OPTION
 
 from .animatable import clone_step
 
@@ -34,10 +36,23 @@ def _replacing(commands: list, callbacks: dict[str, Callable]) -> list:
     return out
 
 
+def _recon_say(msg: str) -> None:
+    typer.echo(f"recon: {msg}", err=True)
+
+
+def example(out: Path = EXAMPLE_OUT_OPTION) -> None:
+    """Run the main job on the embedded example: head.glb, head.fdp.json and preview.png."""
+    from .example import run_example
+
+    paths = run_example(out, progress=_recon_say)
+    for kind, path in paths.items():
+        typer.echo(f"{kind}: {path}")
+
+
 recon_app = typer.Typer(help=recon_cli.app.info.help, no_args_is_help=True, add_completion=False,
                         pretty_exceptions_enable=False)
 recon_app.registered_commands += _replacing(recon_cli.app.registered_commands,
-                                            {"batch": recon_cli.batch_command(clone_step)})
+                                            {"example": example, "batch": recon_cli.batch_command(clone_step)})
 
 app = typer.Typer(help=fmc_app.info.help, no_args_is_help=True, add_completion=False,
                   pretty_exceptions_enable=False)

@@ -1,8 +1,8 @@
 """``recon``'s commands: photos to a textured MPEG-4 head. Each command wraps one public function.
 
 The ``recon`` command itself is built on top of these by :mod:`chain.cli` (``python -m recon``
-runs it too): its ``example`` and ``batch`` also clone motion onto the heads, which needs
-:mod:`fmc`.
+runs it too): its ``example`` and ``batch`` also clone motion onto the heads (and the
+example speaks), which needs :mod:`fmc`.
 """
 
 from __future__ import annotations
@@ -20,12 +20,16 @@ def _say(msg: str) -> None:
     typer.echo(f"recon: {msg}", err=True)
 
 
-@app.command()
-def example(out: Path = typer.Option(Path("example_out"), "-o", "--out", help="Output folder.")) -> None:
-    """Run the main job on the embedded example: head.glb, head.fdp.json and preview.png."""
-    from .example import run_example
+#: ``example``'s output folder, shared with the ``recon`` command's example (chain.cli).
+EXAMPLE_OUT_OPTION = typer.Option(Path("example_out"), "-o", "--out", help="Output folder.")
 
-    paths = run_example(out, progress=_say)
+
+@app.command("example")
+def example(out: Path = EXAMPLE_OUT_OPTION) -> None:
+    """Build the embedded example's head from its photos: head.glb, head.fdp.json and preview.png."""
+    from .example import build_example
+
+    paths = build_example(out, progress=_say)
     for kind, path in paths.items():
         typer.echo(f"{kind}: {path}")
 
