@@ -20,7 +20,6 @@ from fmc.cli import app as fmc_app
 from mpeg4.errors import InputError
 from mpeg4.render import RendererUnavailable
 from recon import cli as recon_cli
-from recon.cli import EXAMPLE_OUT_OPTION
 
 from .animatable import clone_step
 
@@ -40,7 +39,7 @@ def _recon_say(msg: str) -> None:
     typer.echo(f"recon: {msg}", err=True)
 
 
-def example(out: Path = EXAMPLE_OUT_OPTION) -> None:
+def example(out: Path = recon_cli.EXAMPLE_OUT_OPTION) -> None:
     """Run the main job on the embedded example: head.glb, head.fdp.json and preview.png."""
     from .example import run_example
 
