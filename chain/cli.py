@@ -1,11 +1,16 @@
-"""The ``fmc`` command: :mod:`fmc.cli`'s commands, ``fmc mark``, and ``fmc clone`` onto any mesh.
+"""The ``recon`` and ``fmc`` commands.
 
-Each command wraps one public function.
+``recon``: :mod:`recon.cli`'s commands, with an ``example`` that runs the whole chain
+(:func:`chain.example.run_example`) and a ``batch`` whose rows may end by cloning motion
+onto the head (:func:`chain.animatable.clone_step`). ``fmc``: :mod:`fmc.cli`'s commands,
+``fmc mark``, and ``fmc clone`` onto any mesh. Each command wraps one public function.
 """
 
 from __future__ import annotations
 
+import copy
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import typer
@@ -14,6 +19,39 @@ from fmc.cli import ALIGNMENT_OPTION, ANTIALIAS_OPTION, TRIANGULATION_OPTION
 from fmc.cli import app as fmc_app
 from mpeg4.errors import InputError
 from mpeg4.render import RendererUnavailable
+from recon import cli as recon_cli
+
+from .animatable import clone_step
+
+
+def _replacing(commands: list, callbacks: dict[str, Callable]) -> list:
+    """``commands`` in their order, those named in ``callbacks`` running those instead."""
+    out = []
+    for c in commands:
+        if c.name in callbacks:
+            c = copy.copy(c)
+            c.callback = callbacks[c.name]
+        out.append(c)
+    return out
+
+
+def _recon_say(msg: str) -> None:
+    typer.echo(f"recon: {msg}", err=True)
+
+
+def example(out: Path = recon_cli.EXAMPLE_OUT_OPTION) -> None:
+    """Run the main job on the embedded example: head.glb, head.fdp.json and preview.png."""
+    from .example import run_example
+
+    paths = run_example(out, progress=_recon_say)
+    for kind, path in paths.items():
+        typer.echo(f"{kind}: {path}")
+
+
+recon_app = typer.Typer(help=recon_cli.app.info.help, no_args_is_help=True, add_completion=False,
+                        pretty_exceptions_enable=False)
+recon_app.registered_commands += _replacing(recon_cli.app.registered_commands,
+                                            {"example": example, "batch": recon_cli.batch_command(clone_step)})
 
 app = typer.Typer(help=fmc_app.info.help, no_args_is_help=True, add_completion=False,
                   pretty_exceptions_enable=False)
@@ -70,13 +108,23 @@ def clone_cmd(source: Path = typer.Option(..., "--source", help="Head with motio
     typer.echo(save_head(head, out))
 
 
-def main() -> None:
-    """Console entry point: user-input errors print as one line, exit status 2."""
+def _run(command: typer.Typer, name: str, **kwargs) -> None:
+    """Run ``command``: user-input errors print as one line, exit status 2."""
     try:
-        app(prog_name="fmc")
+        command(**kwargs)
     except InputError as e:
-        typer.echo(f"fmc: error: {e}", err=True)
+        typer.echo(f"{name}: error: {e}", err=True)
         sys.exit(2)
     except RendererUnavailable as e:  # a machine without EGL: say what to install
-        typer.echo(f"fmc: error: {e}", err=True)
+        typer.echo(f"{name}: error: {e}", err=True)
         sys.exit(3)
+
+
+def main() -> None:
+    """The ``fmc`` console entry point: user-input errors print as one line, exit status 2."""
+    _run(app, "fmc", prog_name="fmc")
+
+
+def recon_main() -> None:
+    """The ``recon`` console entry point (and ``python -m recon``): likewise."""
+    _run(recon_app, "recon")

@@ -2,18 +2,7 @@
 
 Stages, one module each as they land: ``landmarks`` and ``annotate`` (2D feature points),
 ``calibrate`` (3D points), ``deform`` (Dirichlet free-form deformation of the generic
-head), ``texture``, ``build`` and ``batch`` (many heads). ``example`` runs the main job on the
-embedded example; ``animatable`` is the clone step a batch row may end with. Both reach
-:mod:`fmc` only when called: ``recon`` itself never imports it.
+head), ``texture``, ``build`` and ``batch`` (many heads); ``example`` is the embedded
+example. ``recon`` never imports :mod:`fmc`: what needs both (``recon example``'s cloning
+and speech, the clone step a batch row may end with) is in :mod:`chain`.
 """
-
-__all__ = ["run_example"]
-
-
-def __getattr__(name):
-    # Lazy, so that importing one stage does not load the whole chain.
-    if name == "run_example":
-        from .example import run_example
-
-        return run_example
-    raise AttributeError(f"module 'recon' has no attribute {name!r}")

@@ -1,3 +1,10 @@
-from .cli import main
+"""``python -m recon``: the ``recon`` command.
 
-main()
+That command is built on top of :mod:`recon.cli` by :mod:`chain.cli` (its ``example`` and
+``batch`` also clone motion, which needs :mod:`fmc`); this launcher is the one file under
+``recon/`` that names it, and no module of ``recon`` imports it.
+"""
+
+from chain.cli import recon_main
+
+recon_main()

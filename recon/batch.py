@@ -63,7 +63,7 @@ from pathlib import Path
 from mpeg4.errors import InputError
 
 __all__ = ["ManifestRow", "BatchReport", "read_manifest", "build_person", "run_batch", "REPORT_NAME",
-           "RECORD_NAME", "NO_LANDMARKS"]
+           "RECORD_NAME", "NO_LANDMARKS", "GENERIC_SOURCE"]
 
 #: The batch's record of every row, in ``OUT``.
 REPORT_NAME = "report.jsonl"
@@ -71,6 +71,8 @@ REPORT_NAME = "report.jsonl"
 RECORD_NAME = "batch.json"
 #: The failure of a row without annotations when automatic detection is not installed.
 NO_LANDMARKS = "no annotations and automatic landmarks are not installed"
+#: The ``clone`` value naming the shipped generic head with its complete animation tables.
+GENERIC_SOURCE = "generic"
 
 _PATH_COLUMNS = ("front", "side", "fdp", "shape_from", "texture_from")
 _OPTION_COLUMNS = ("ipd", "focal", "method", "texture_size", "atlas")
@@ -213,8 +215,6 @@ def _parse_row(raw: dict, line: int, folder: Path, manifest: str) -> ManifestRow
         options["method"] = cells["method"]
     clone = cells.get("clone")
     if clone is not None:
-        from .animatable import GENERIC_SOURCE
-
         clone = GENERIC_SOURCE if str(clone).lower() == GENERIC_SOURCE else path("clone")
     return ManifestRow(pid, line, clone=clone, options=options, manifest=manifest, **paths)
 
@@ -414,7 +414,7 @@ def _build_here(row: ManifestRow, out_dir: str, defaults: dict, created: str | N
         if row.clone is not None:
             if clone_step is None:
                 raise InputError("the row asks for a clone step but the batch was given none", where=row.where,
-                                 fix="run it with recon batch, or pass clone_step=recon.animatable.clone_step")
+                                 fix="run it with recon batch, or pass clone_step=chain.animatable.clone_step")
             head, warnings = clone_step(built[0].head, row.clone)
             save_head(head, paths["head"])
             record["clone_warnings"] = list(warnings)
@@ -475,7 +475,7 @@ def build_person(row: ManifestRow, out_dir: str, defaults: dict, created: str | 
         Time stamp for the bundle's provenance (:func:`recon.build.build_time`).
     clone_step : callable, optional
         ``clone_step(head, source) -> (head, warnings)`` for rows with a ``clone`` column
-        (:func:`recon.animatable.clone_step`).
+        (:func:`chain.animatable.clone_step`).
     detect : callable, optional
         ``detect(front, side) -> FdpFile`` for rows without annotations (by default
         :func:`recon.landmarks.detect` when installed).
@@ -795,7 +795,7 @@ def run_batch(manifest: str | os.PathLike, out_dir: str | os.PathLike, workers: 
         Defaults for what a row leaves empty (see :func:`recon.build.run_build`).
     clone_step : callable, optional
         For rows with a ``clone`` column: ``clone_step(head, source) -> (head, warnings)``,
-        e.g. :func:`recon.animatable.clone_step` (which ``recon batch`` passes).
+        e.g. :func:`chain.animatable.clone_step` (which ``recon batch`` passes).
     detect : callable, optional
         ``detect(front, side) -> FdpFile`` for rows without annotations (default:
         :func:`recon.landmarks.detect` when installed; else such rows fail with

@@ -1,14 +1,16 @@
-"""``recon``: photos to a textured MPEG-4 head. Each command wraps one public function."""
+"""``recon``'s commands: photos to a textured MPEG-4 head. Each command wraps one public function.
+
+The ``recon`` command itself is built on top of these by :mod:`chain.cli` (``python -m recon``
+runs it too): its ``example`` and ``batch`` also clone motion onto the heads (and the
+example speaks), which needs :mod:`fmc`.
+"""
 
 from __future__ import annotations
 
-import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import typer
-
-from mpeg4.errors import InputError
-from mpeg4.render import RendererUnavailable
 
 app = typer.Typer(help="Turn a front and a side photo into a textured, animatable MPEG-4 head.",
                   no_args_is_help=True, add_completion=False, pretty_exceptions_enable=False)
@@ -18,12 +20,16 @@ def _say(msg: str) -> None:
     typer.echo(f"recon: {msg}", err=True)
 
 
-@app.command()
-def example(out: Path = typer.Option(Path("example_out"), "-o", "--out", help="Output folder.")) -> None:
-    """Run the main job on the embedded example: head.glb, head.fdp.json and preview.png."""
-    from .example import run_example
+#: ``example``'s output folder, shared with the ``recon`` command's example (chain.cli).
+EXAMPLE_OUT_OPTION = typer.Option(Path("example_out"), "-o", "--out", help="Output folder.")
 
-    paths = run_example(out, progress=_say)
+
+@app.command("example")
+def example(out: Path = EXAMPLE_OUT_OPTION) -> None:
+    """Build the embedded example's head from its photos: head.glb, head.fdp.json and preview.png."""
+    from .example import build_example
+
+    paths = build_example(out, progress=_say)
     for kind, path in paths.items():
         typer.echo(f"{kind}: {path}")
 
@@ -69,44 +75,56 @@ def build(front: Path = typer.Argument(None, help="Front photo (JPEG/PNG); by de
         typer.echo(f"{kind}: {path}")
 
 
-@app.command()
-def batch(manifest: Path = typer.Argument(..., help="Manifest: one person a row (.csv with a header, or .jsonl)."),
-          out: Path = typer.Option(Path("batch_out"), "-o", "--out", help="Output folder: OUT/<id>/ per person, "
-                                                                          "OUT/report.jsonl."),
-          workers: int = typer.Option(None, "--workers", help="Local worker processes (default: one per CPU)."),
-          scheduler: str = typer.Option(None, "--scheduler", help="Run on this Dask cluster instead "
-                                                                  "(tcp://HOST:8786)."),
-          ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm, for rows that give none."),
-          focal: float = typer.Option(None, "--focal", help="Focal length in pixels, for rows that give none "
-                                                            "[default: from the photos' EXIF; orthographic "
-                                                            "cameras if they record none]."),
-          method: str = typer.Option("dffd", "--method", help="dffd or rbf, for rows that give none."),
-          texture_size: int = typer.Option(2048, "--texture-size", help="Texture side in pixels, for rows that "
-                                                                        "give none."),
-          atlas: bool = typer.Option(False, "--atlas", help="Re-pack textures into atlases, for rows that give none."),
-          show_progress: bool = typer.Option(True, "--progress/--no-progress", help="Show the progress bar.")
-          ) -> None:
-    """Build many heads: one task a person into OUT/<id>/, failures in OUT/report.jsonl; re-run to finish.
+def batch_command(clone_step: Callable | None = None) -> Callable:
+    """The ``batch`` command, the rows' ``clone`` column done by ``clone_step``.
 
-    Exits with status 1 when some rows failed.
+    ``recon.cli``'s own ``batch`` has no clone step (a row asking for one fails, as
+    :func:`recon.batch.run_batch` says); the ``recon`` command (:mod:`chain.cli`) passes
+    :func:`chain.animatable.clone_step`.
     """
-    from rich.console import Console
 
-    from .animatable import clone_step
-    from .batch import run_batch
+    def batch(manifest: Path = typer.Argument(..., help="Manifest: one person a row (.csv with a header, or .jsonl)."),
+              out: Path = typer.Option(Path("batch_out"), "-o", "--out", help="Output folder: OUT/<id>/ per person, "
+                                                                              "OUT/report.jsonl."),
+              workers: int = typer.Option(None, "--workers", help="Local worker processes (default: one per CPU)."),
+              scheduler: str = typer.Option(None, "--scheduler", help="Run on this Dask cluster instead "
+                                                                      "(tcp://HOST:8786)."),
+              ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm, for rows that give none."),
+              focal: float = typer.Option(None, "--focal", help="Focal length in pixels, for rows that give none "
+                                                                "[default: from the photos' EXIF; orthographic "
+                                                                "cameras if they record none]."),
+              method: str = typer.Option("dffd", "--method", help="dffd or rbf, for rows that give none."),
+              texture_size: int = typer.Option(2048, "--texture-size", help="Texture side in pixels, for rows that "
+                                                                            "give none."),
+              atlas: bool = typer.Option(False, "--atlas", help="Re-pack textures into atlases, for rows that give "
+                                                                "none."),
+              show_progress: bool = typer.Option(True, "--progress/--no-progress", help="Show the progress bar.")
+              ) -> None:
+        """Build many heads: one task a person into OUT/<id>/, failures in OUT/report.jsonl; re-run to finish.
 
-    try:
-        report = run_batch(manifest, out, workers=workers, scheduler=scheduler, ipd_mm=ipd, focal_px=focal,
-                           method=method, texture_size=texture_size, atlas=atlas, clone_step=clone_step,
-                           progress=show_progress)
-    except KeyboardInterrupt:
-        _say(f"interrupted; the finished heads are in {out}, run the same command again to build the rest")
-        raise typer.Exit(130)
-    console = Console(stderr=True)
-    console.print(report.table())
-    console.print(report.summary(), soft_wrap=True)
-    if report.failed:
-        raise typer.Exit(1)
+        Exits with status 1 when some rows failed.
+        """
+        from rich.console import Console
+
+        from .batch import run_batch
+
+        try:
+            report = run_batch(manifest, out, workers=workers, scheduler=scheduler, ipd_mm=ipd, focal_px=focal,
+                               method=method, texture_size=texture_size, atlas=atlas, clone_step=clone_step,
+                               progress=show_progress)
+        except KeyboardInterrupt:
+            _say(f"interrupted; the finished heads are in {out}, run the same command again to build the rest")
+            raise typer.Exit(130)
+        console = Console(stderr=True)
+        console.print(report.table())
+        console.print(report.summary(), soft_wrap=True)
+        if report.failed:
+            raise typer.Exit(1)
+
+    return batch
+
+
+app.command("batch")(batch_command())
 
 
 @app.command()
@@ -152,14 +170,3 @@ def preview(head: Path = typer.Argument(..., help="Head file (.glb, .gltf or .ob
 
     typer.echo(save_preview(load_head(head), out, size=size, labels=labels, focal_px=focal))
 
-
-def main() -> None:
-    """Console entry point: user-input errors print as one line, exit status 2."""
-    try:
-        app()
-    except InputError as e:
-        typer.echo(f"recon: error: {e}", err=True)
-        sys.exit(2)
-    except RendererUnavailable as e:  # a machine without EGL: say what to install
-        typer.echo(f"recon: error: {e}", err=True)
-        sys.exit(3)

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
+from chain.cli import recon_app
 from fmc.cli import app as fmc_app
-from recon.cli import app as recon_app
 
 ROOT = Path(__file__).resolve().parents[1]
 runner = CliRunner()

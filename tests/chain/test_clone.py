@@ -42,19 +42,6 @@ def test_marked_but_unreviewed_points_are_said_so(mesh, tmp_path):
     assert "2.1" in head.feature_points
 
 
-def test_fmc_itself_imports_no_recon():
-    import subprocess
-    import sys
-
-    code = ("import sys, pkgutil, importlib, fmc\n"
-            "for m in pkgutil.walk_packages(fmc.__path__, 'fmc.'):\n"
-            "    if not m.name.endswith('__main__'): importlib.import_module(m.name)\n"
-            "bad = sorted(m for m in sys.modules if m == 'recon' or m.startswith('recon.') or m.startswith('chain'))\n"
-            "assert not bad, bad\n")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT)
-    assert out.returncode == 0, out.stderr
-
-
 def test_clone_onto_an_unmarked_mesh_without_a_detector_is_one_line(mesh, tmp_path, landmark_detector_available):
     import os
     import subprocess

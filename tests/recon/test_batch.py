@@ -213,7 +213,7 @@ def test_a_row_without_annotations_uses_automatic_landmarks_and_is_flagged(peopl
     (parsed,) = read_manifest(manifest)
     defaults = {"ipd_mm": 63.0, "focal_px": None, "method": "dffd", "texture_size": 256, "atlas": False}
     installed = importlib.util.find_spec("recon.landmarks") is not None
-    from recon.animatable import clone_step
+    from chain.animatable import clone_step
 
     def models_missing(front, side):
         raise ImportError("mediapipe is not installed")
@@ -297,10 +297,3 @@ def test_manifest_formats_and_the_command_line(tmp_path):
     assert r.returncode == 2 and "line 2" in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
 
-
-def test_the_batch_does_not_import_fmc():
-    # recon never imports fmc: the clone step reaches it only when a row asks for it.
-    code = ("import sys, recon.batch, recon.animatable, recon.cli; "
-            "print([m for m in sys.modules if m.split('.')[0] == 'fmc'])")
-    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0 and r.stdout.strip() == "[]", r.stderr

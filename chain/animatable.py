@@ -1,11 +1,9 @@
 """A built head made animatable: a source head's motion cloned onto it.
 
-This is the thin layer where the photo side hands over to the motion side. ``recon`` never
-imports :mod:`fmc` at module level (data flows photos → head → clone, one way); the
-functions here import it when they are called, as :mod:`recon.example` does, so that
-:mod:`recon.batch` can stay free of :mod:`fmc` and receive :func:`clone_step` as a plain
-function (it pickles by reference, so it travels to local worker processes and to Dask
-workers alike).
+The step where the photo side hands over to the motion side, so it lives here, above both:
+:mod:`recon.batch` knows nothing of :mod:`fmc` and receives :func:`clone_step` as a plain
+function (``recon batch`` passes it; it pickles by reference, so it travels to local worker
+processes and to Dask workers alike).
 """
 
 from __future__ import annotations
@@ -14,11 +12,9 @@ import functools
 import os
 
 from mpeg4.head import Head
+from recon.batch import GENERIC_SOURCE
 
 __all__ = ["GENERIC_SOURCE", "clone_step", "load_source"]
-
-#: The ``clone`` value naming the shipped generic head with its complete animation tables.
-GENERIC_SOURCE = "generic"
 
 
 @functools.lru_cache(maxsize=2)

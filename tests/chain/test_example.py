@@ -5,7 +5,7 @@ import json
 import cv2
 
 from mpeg4.io import load_head
-from recon.example import run_example
+from chain.example import run_example
 
 
 def test_example_writes_a_valid_head_fdp_and_preview(tmp_path, validate_gltf):
