@@ -5,7 +5,10 @@ seams' smoothness.
 texture already holds the photo's light), and compares it with the photo inside the face
 — the front region's outline (:func:`recon.texture.feature_polygon`), where both the
 render and the photo show the head, shrunk by a few pixels so that silhouettes do not
-count. :func:`seam_smoothness` measures the mean gradient in a band across the borders
+count. :func:`side_reprojection` does the same with the side photo's camera over all the
+skin the side photo sees, and gives the mean colour difference over the skin in front of
+the ear that the texture takes from the front photo (which sees it at a grazing angle).
+:func:`seam_smoothness` measures the mean gradient in a band across the borders
 between the texture's layers for the multiresolution spline and for the two blends it
 replaces (a hard cut and a feathered edge).
 """
@@ -17,11 +20,12 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from mpeg4.errors import InputError
 from mpeg4.head import Head
 
 from .cameras import FittedCamera
 
-__all__ = ["Fidelity", "face_mask", "reprojection", "seam_smoothness"]
+__all__ = ["Fidelity", "SideFidelity", "face_mask", "reprojection", "side_reprojection", "seam_smoothness"]
 
 
 @dataclass
@@ -76,24 +80,42 @@ def reprojection(head: Head, photo: np.ndarray, front: FittedCamera, photo_mask:
     shrink : int
         Pixels taken off the region's rim.
     """
-    from skimage.metrics import structural_similarity
+    image, skin_seen = _render_skin(head, front)
+    region = face_mask(head, front, photo.shape[:2], shrink) & skin_seen
+    if photo_mask is not None:
+        region &= cv2.erode(photo_mask.astype(np.uint8), np.ones((2 * shrink + 1,) * 2, np.uint8)) > 0
+    psnr, ssim = _compare(image, photo, region)
+    return Fidelity(psnr, ssim, int(region.sum()))
 
+
+def _render_skin(head: Head, cam: FittedCamera, vertex_colours: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The head rendered unlit (or its skin with vertex colours), and (H, W) bool where the
+    surface seen is the skin, shrunk by a pixel."""
     from mpeg4.preview import head_meshes
     from mpeg4.render import render
 
-    image, depth = render(head_meshes(head), front.camera, return_depth=True, ambient=1.0, samples=4)
+    meshes = head_meshes(head)
+    names = list(head.parts)
+    skin = [m for m, n in zip(meshes, names) if n == "skin"]
+    if vertex_colours is not None:
+        skin[0].vertex_colours = vertex_colours
+        skin[0].texture = None
+        skin[0].colour = (1.0, 1.0, 1.0)
+    image, depth = render(meshes, cam.camera, return_depth=True, ambient=1.0, samples=4)
     # Only where the skin is the surface seen (the eyes and teeth have textures of their own).
-    skin_only = render(head_meshes(head)[:1] if next(iter(head.parts)) == "skin" else
-                       [m for m, n in zip(head_meshes(head), head.parts) if n == "skin"],
-                       front.camera, return_depth=True, samples=0)[1]
+    skin_only = render(skin, cam.camera, return_depth=True, samples=0)[1]
     both = np.isfinite(depth) & np.isfinite(skin_only)
     gap = np.full(depth.shape, np.inf)
     gap[both] = np.abs(skin_only[both] - depth[both])
     skin_seen = gap < 1e-4
-    skin_seen = cv2.erode(skin_seen.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
-    region = face_mask(head, front, photo.shape[:2], shrink) & skin_seen
-    if photo_mask is not None:
-        region &= cv2.erode(photo_mask.astype(np.uint8), np.ones((2 * shrink + 1,) * 2, np.uint8)) > 0
+    return image, cv2.erode(skin_seen.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+
+
+def _compare(image: np.ndarray, photo: np.ndarray, region: np.ndarray) -> tuple[float, float]:
+    """PSNR (dB, RGB) and mean SSIM (grey, 7 x 7 windows) of an image against a photo in a region."""
+    from skimage.metrics import structural_similarity
+
     diff = image[region].astype(np.float64) - photo[region].astype(np.float64)
     mse = float(np.mean(diff ** 2))
     psnr = float(10 * np.log10(255.0 ** 2 / max(mse, 1e-12)))
@@ -102,8 +124,95 @@ def reprojection(head: Head, photo: np.ndarray, front: FittedCamera, photo_mask:
     a = cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_RGB2GRAY)
     b = cv2.cvtColor(np.ascontiguousarray(photo[y0:y1, x0:x1]), cv2.COLOR_RGB2GRAY)
     _, smap = structural_similarity(a, b, data_range=255, win_size=7, full=True)
-    ssim = float(smap[region[y0:y1, x0:x1]].mean())
-    return Fidelity(psnr, ssim, int(region.sum()))
+    return psnr, float(smap[region[y0:y1, x0:x1]].mean())
+
+
+@dataclass
+class SideFidelity:
+    """Re-projection figures of one head in its side photo.
+
+    Attributes
+    ----------
+    psnr_db, ssim : float
+        Over all the skin the side photo sees.
+    pixels : int
+        Size of that region.
+    side_layer_psnr_db : float
+        Over the skin the texture takes from the side photo (its seen-side layer).
+    cheek_rgb : (3,) float
+        Mean colour of the render minus the photo (grey levels, RGB) over the cheek: the
+        skin the texture takes from the front photo that faces the side camera within 45°.
+    cheek_pixels : int
+    """
+
+    psnr_db: float
+    ssim: float
+    pixels: int
+    side_layer_psnr_db: float
+    cheek_rgb: np.ndarray
+    cheek_pixels: int
+
+    @property
+    def cheek_grey(self) -> float:
+        """The cheek's mean difference in grey levels (Rec. 601 luma of ``cheek_rgb``)."""
+        return float(np.dot(self.cheek_rgb, (0.299, 0.587, 0.114)))
+
+
+def side_reprojection(head: Head, skin, photo: np.ndarray, side: FittedCamera, photo_mask: np.ndarray | None = None,
+                      shrink: int = 4, facing_deg: float = 45.0) -> SideFidelity:
+    """Render ``head`` with the side camera and compare it with the side photo over the
+    skin the photo sees, and over the cheek in front of the ear.
+
+    Parameters
+    ----------
+    head : Head
+        Textured with ``skin``.
+    skin : recon.texture.SkinTexture
+        Its texture's layout (which region each skin vertex samples).
+    photo : (H, W, 3) uint8
+        The side photo the texture came from.
+    side : FittedCamera
+    photo_mask : (H, W) bool, optional
+        Where the head is in the photo (all of it when None).
+    shrink : int
+        Pixels taken off the regions' rims.
+    facing_deg : float
+        The cheek is front-region skin whose normal is within this angle of the direction
+        to the side camera.
+    """
+    from mpeg4.render import vertex_normals
+
+    from .texture import FRONT, SEEN
+
+    part = head.parts["skin"]
+    if len(part.vertices) != len(skin.vertex_region):
+        raise InputError(f"the head's skin has {len(part.vertices)} vertices, the texture was laid out for "
+                         f"{len(skin.vertex_region)}", where="side_reprojection",
+                         fix="give the head textured with this texture (recon.texture.textured_head)")
+    image, skin_seen = _render_skin(head, side)
+    region = skin_seen.copy()
+    if photo_mask is not None:
+        region &= cv2.erode(photo_mask.astype(np.uint8), np.ones((2 * shrink + 1,) * 2, np.uint8)) > 0
+    psnr, ssim = _compare(image, photo, region)
+    # The cheek and the side layer: rendered as white patches on black, shrunk off their rims.
+    v = part.vertices
+    c = side.camera
+    to_cam = (c.centre[None] - v) if c.perspective else np.broadcast_to(c.rotation[2], v.shape)
+    to_cam = to_cam / np.linalg.norm(to_cam, axis=1, keepdims=True)
+    n = vertex_normals(v, part.triangles)
+    facing = np.abs(np.sum(n * to_cam, axis=1)) >= np.cos(np.radians(facing_deg))
+    patches = {}
+    for name, sel in (("cheek", (skin.vertex_region == FRONT) & facing), ("side", skin.vertex_region == SEEN)):
+        image_sel, _ = _render_skin(head, side, np.repeat(sel.astype(np.float64)[:, None], 3, axis=1))
+        k = np.ones((2 * shrink + 1,) * 2, np.uint8)
+        patches[name] = (cv2.erode((image_sel[..., 0] > 250).astype(np.uint8), k) > 0) & region
+    cheek_px = patches["cheek"]
+    if cheek_px.any():
+        d = (image[cheek_px].astype(np.float64) - photo[cheek_px].astype(np.float64)).mean(axis=0)
+    else:
+        d = np.full(3, np.nan)
+    side_psnr = _compare(image, photo, patches["side"])[0] if patches["side"].any() else float("nan")
+    return SideFidelity(psnr, ssim, int(region.sum()), side_psnr, d, int(cheek_px.sum()))
 
 
 def seam_smoothness(layers, masks, band: int = 8) -> dict[str, float]:
