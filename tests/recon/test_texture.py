@@ -126,13 +126,12 @@ def test_side_reprojection_gives_the_side_layer_back_and_weighs_the_cheek(exampl
     side = result.cameras["side"]
     fid = side_reprojection(result.head, result.skin, pair.side, side)
     # The skin the texture takes from the side photo comes back like the front region in
-    # the front photo (31.7 dB on the example at 2048²); the cheek in front of the ear, which
+    # the front photo (31.7 dB on the example at 2048²). The cheek in front of the ear, which
     # it takes from the front photo, seen there at a grazing angle, is far darker (-62 grey
-    # levels on the example, -33 to -75 on the ten identities of benchmarks/texture_fidelity.py)
-    # and pulls the whole side view down (19.4 dB).
+    # levels on the example, 19.4 dB over the whole side view): benchmarks/texture_fidelity.py
+    # reports it; it is not pinned here, so that a fix does not fail the test.
     assert fid.side_layer_psnr_db > 28.0 and fid.pixels > 200_000 and fid.cheek_pixels > 20_000, fid
-    assert fid.psnr_db < fid.side_layer_psnr_db - 5.0, fid
-    assert fid.cheek_grey < -20.0, fid
+    assert np.isfinite(fid.psnr_db) and -255.0 < fid.cheek_grey < 255.0, fid
     # The cheek's difference is a mean over the right pixels: lightening the texture by
     # 20 grey levels lightens it by 20 (where nothing clips).
     brighter = copy.deepcopy(result.head)
