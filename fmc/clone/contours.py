@@ -54,11 +54,14 @@ def edge_graph(vertices: np.ndarray, triangles: np.ndarray) -> sparse.csr_matrix
     """(N, N) symmetric sparse matrix of a mesh's edge lengths."""
     v = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    e = np.unique(np.sort(np.r_[t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]], axis=1), axis=0)
-    # Zero-length edges (welded vertices) would read as missing: a tiny length instead.
-    length = np.maximum(np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1), 1e-12)
-    return sparse.coo_matrix((np.r_[length, length], (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
-                             shape=(len(v),) * 2).tocsr()
+    n = len(v)
+    e = np.r_[t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]
+    # The edges both ways, each once (the duplicates summed), then their lengths; a
+    # zero-length edge (welded vertices) would read as missing: a tiny length instead.
+    both = sparse.csr_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
+                             shape=(n, n)).tocoo()
+    length = np.maximum(np.linalg.norm(v[both.row] - v[both.col], axis=1), 1e-12)
+    return sparse.csr_matrix((length, (both.row, both.col)), shape=(n, n))
 
 
 def _fp_vertex(head: Head, fp: str) -> int | None:
