@@ -1,10 +1,11 @@
-"""Contours between feature points: the eyelid margins and the lips' inner contours.
+"""Contours between feature points: the eyelid margins, the lips' inner contours and the
+mouth's corners.
 
 The motion changes fastest across the eyelid margins (a lid closes, the skin beside it
 does not) and the lips' inner contours (the lips part), so a small misalignment there
 costs the most. Each contour runs through feature points (an eye's inner corner, the
 centre of its lid's margin, its outer corner; a lip's inner corners and the points along
-it); between two of them it is the shortest path along the skin's edges
+it; a mouth corner's outer and inner points); between two of them it is the shortest path along the skin's edges
 (:func:`contour_path`). Sampled by arc length on both heads, the contours give the
 alignment more points that correspond (:func:`contour_pairs`), held by
 :func:`fmc.clone.align.surface_warp` like the feature points.
@@ -12,13 +13,16 @@ alignment more points that correspond (:func:`contour_pairs`), held by
 On ICT FaceKit identities (the generic head to seeds 2000-2002, same topology, so the
 true counterparts are known) the misalignment of true counterparts in the common space
 fell from a median of 0.42 to 0.35 mm (90th percentile 1.01 to 0.93 mm) within 12 mm of
-the eyes' points and from 0.44 to 0.38 mm (1.00 to 0.94 mm) about the lips (over the
+the eyes' points and from 0.44 to 0.38 mm (1.00 to 0.92 mm) about the lips (over the
 whole narrow face 0.57 to 0.55 mm, the 90th percentile 1.79 to 1.80 mm); the round trip
-from 2.46 % to 2.30 % (no shape worse; the blinks 6.4 and 6.0 % to 6.1 and 5.8 %, the
-lips' rolls 4.0 and 3.8 % to 3.5 and 3.3 %), source → target from 6.22 % to 6.10 %. A path that keeps to
-the fold (each edge's length discounted by the angle between its two triangles) was
-less stable from one head to another and worse (0.48 mm about the eyes), and the lips'
-outer contours as well added little (round trip 2.25 %, source → target 6.11 %).
+from 2.46 % to 2.29 % (no shape worse; the blinks 6.4 and 6.0 % to 6.1 and 5.8 %, the
+lips' rolls 4.0 and 3.8 % to 3.5 and 3.3 %, mouthClose 3.4 to 2.9 %), source → target
+from 6.22 % to 6.07 %. Tried and left out: a path that keeps to the fold (each edge's
+length discounted by the angle between its two triangles), less stable from one head
+to another and worse (0.48 mm about the eyes); the lips' outer contours as well (round
+trip 2.25 %, source → target 6.10 %); the lids' outer contours through 3.13 and 3.9
+(2.80 % and 7.13 %); arc length in the alignment space instead of along the mesh
+(2.28 % and 6.12 %, without the mouth's corners).
 
 A contour that is not found on both heads (a feature point missing or off the skin, a
 path much longer than its feature points are apart) is left out on both, so the
@@ -43,6 +47,8 @@ CONTOURS = (
     ("3.12", "3.4", "3.8"),  # right lower lid margin
     ("2.4", "2.6", "2.2", "2.7", "2.5"),  # upper lip's inner contour
     ("2.4", "2.8", "2.3", "2.9", "2.5"),  # lower lip's inner contour
+    ("8.3", "2.4"),  # left mouth corner, outer to inner
+    ("8.4", "2.5"),  # right mouth corner, outer to inner
 )
 
 # A path longer than this many times the straight distance between its feature points
