@@ -5,8 +5,8 @@ The motion changes fastest across the eyelid margins (a lid closes, the skin bes
 does not) and the lips' inner contours (the lips part), so a small misalignment there
 costs the most. Each contour runs through feature points (an eye's inner corner, the
 centre of its lid's margin, its outer corner; a lip's inner corners and the points along
-it; a mouth corner's outer and inner points); between two of them it is the shortest path along the skin's edges
-(:func:`contour_path`). Sampled by arc length on both heads, the contours give the
+it; a mouth corner's outer and inner points); between two of them it is the shortest
+path along the skin's edges (:func:`contour_path`). Sampled by arc length on both heads, the contours give the
 alignment more points that correspond (:func:`contour_pairs`), held by
 :func:`fmc.clone.align.surface_warp` like the feature points.
 
