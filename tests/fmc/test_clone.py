@@ -298,7 +298,8 @@ def test_contours_are_left_out_where_a_head_lacks_them():
     partial = Head(target.parts, {k: v for k, v in target.feature_points.items() if k != "2.6"})
     assert contour_path(partial, CONTOURS[4]) is None
     (sv2, _), (tv2, _) = contour_pairs(source, partial, s_sp, t_sp)
-    upper = {int(k) for seg in paths[4] for k in seg} - {int(k) for p in paths[:4] + paths[5:] for seg in p for k in seg}
+    others = {int(k) for p in paths[:4] + paths[5:] for seg in p for k in seg}
+    upper = {int(k) for seg in paths[4] for k in seg} - others
     assert len(sv2) == len(tv2) and 0 < len(sv2) < len(sv) and upper.isdisjoint(sv2.tolist())
 
 
