@@ -16,7 +16,15 @@ The method, after Pandžić [1]_, one small function per step:
    the piecewise-affine map, :func:`warp`, as an option), the same from either side so
    that cloning A → B and B → A use one correspondence; depth scaled by the two heads'
    radii at the feature points, the depth under the outer surface
-   (:func:`outer_radius`: the mouth's inside, the sockets) by their sizes.
+   (:func:`outer_radius`: the mouth's inside, the sockets) by their sizes. The
+   interpolation holds as well the eyelid margins, the lips' inner contours and the
+   mouth's corners: on each
+   mesh the shortest paths along its edges between their feature points, sampled by arc
+   length and moved half-way like the points (:func:`contour_pairs`). There the motion
+   changes fastest, so misalignment costs most: on ICT FaceKit identities the round trip
+   fell from 2.46 % to 2.29 %, source → target from 6.22 % to 6.07 %. They are left out
+   where either head lacks a contour, and between meshes of unlike density (a coarse
+   mesh's paths stray from the fold by up to an edge).
 4. Interpolation (:func:`skin_weights`, :func:`interpolation_matrix`): each target vertex
    takes the motion of the projected source triangle that holds it, the nearest in depth
    where several do; a triangle it lies outside competes by its distance, the excess of
@@ -46,6 +54,7 @@ from .align import (FPTriangulation, bilaplacian, delaunay_fp_triangulation, fol
                     midway, outer_radius, surface_warp, triangulation_for, vertex_positions, warp)
 from .cloning import (ANTIALIAS_FRACTION, REQUIRED_FPS, Correspondence, align_heads, check_head, clone, clone_targets,
                       correspond, lip_sides, pin_feature_points, skin_weights)
+from .contours import CONTOURS, contour_pairs, contour_path, edge_graph
 from .interpolate import TriangleIndex, disc_samples, gradient_operator, interpolation_matrix
 from .parts import PART_ROLES, PartRef, find_parts, rigid_motion, sphere_centre
 from .regions import LIP_FPS, lip_classes, lip_sides_on_mesh, normalisation, region_scales
@@ -58,6 +67,7 @@ __all__ = [
     "alignment_space", "cylinder_axis", "MOUTH_SPAN",
     "FPTriangulation", "load_fp_triangulation", "delaunay_fp_triangulation", "triangulation_for", "vertex_positions",
     "folded_triangles", "warp", "midway", "surface_warp", "bilaplacian", "outer_radius",
+    "CONTOURS", "contour_path", "contour_pairs", "edge_graph",
     "TriangleIndex", "disc_samples", "gradient_operator", "interpolation_matrix",
     "PART_ROLES", "PartRef", "find_parts", "rigid_motion", "sphere_centre",
 ]

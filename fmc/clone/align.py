@@ -227,7 +227,7 @@ def bilaplacian(vertices: np.ndarray, triangles: np.ndarray) -> sparse.csr_matri
 
 
 def surface_warp(head: Head, space: np.ndarray, tri: FPTriangulation, from_positions: np.ndarray,
-                 to_positions: np.ndarray) -> np.ndarray:
+                 to_positions: np.ndarray, also_held: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """(N, 3) the head's skin vertices (``space``: their angle, height and radius) carried
     from the triangulation's vertices at ``from_positions`` to ``to_positions`` (both
     (V, 3)), smoothly along the surface.
@@ -241,7 +241,9 @@ def surface_warp(head: Head, space: np.ndarray, tri: FPTriangulation, from_posit
     the triangles' edges, and a surface that folds under another in the projection
     (inside the mouth, under the lids) moves with the skin it is joined to, not with the
     triangle it happens to lie under. A piece of the mesh that touches no held vertex
-    keeps the piecewise-affine map.
+    keeps the piecewise-affine map. ``also_held``, (K,) vertex indices and their (K, 2)
+    places (angle, height), holds more vertices (the contours between the feature
+    points, :func:`fmc.clone.contours.contour_pairs`).
 
     References
     ----------
@@ -262,6 +264,9 @@ def surface_warp(head: Head, space: np.ndarray, tri: FPTriangulation, from_posit
     inner = ~tri.frame[tri.triangles].any(axis=1)
     tri_of, _ = TriangleIndex(from_positions[:, :2], tri.triangles[inner]).locate(space[:, :2])
     held |= tri_of < 0
+    if also_held is not None and len(also_held[0]):
+        moved[also_held[0]] = also_held[1]
+        held[also_held[0]] = True
     t = head.skin.triangles
     edges = np.r_[t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]
     free = ~held

@@ -267,6 +267,42 @@ def test_rigid_parts_turn_about_their_own_centres():
     assert np.linalg.norm(t) < 1e-6
 
 
+def test_contours_are_left_out_where_a_head_lacks_them():
+    from fmc.clone import CONTOURS, contour_pairs, contour_path
+
+    source = load_generic_head()
+    target = source.with_vertices({k: p.vertices * [1.12, 0.94, 1.05] + [0.01, -0.02, 0.0]
+                                   for k, p in source.parts.items()})
+    s_sp, t_sp = alignment_space(source, source.skin.vertices), alignment_space(target, target.skin.vertices)
+    paths = [contour_path(source, c) for c in CONTOURS]
+    assert all(p is not None for p in paths)
+    t = source.skin.triangles
+    edges = {tuple(e) for e in np.sort(np.r_[t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]], axis=1).tolist()}
+    for chain, path in zip(CONTOURS, paths):
+        assert len(path) == len(chain) - 1
+        for seg, (a, b) in zip(path, zip(chain[:-1], chain[1:])):
+            assert seg[0] == source.feature_points[a].vertices[0] and seg[-1] == source.feature_points[b].vertices[0]
+            assert all(tuple(sorted(e)) in edges for e in zip(seg[:-1], seg[1:]))  # along the mesh's edges
+    (sv, sp), (tv, tp) = contour_pairs(source, target, s_sp, t_sp)
+    assert len(sv) > 100 and len(sv) == len(set(sv)) and sp.shape == (len(sv), 2)
+    # The same mesh stretched: the same paths; a vertex's two places differ only by how the
+    # stretch shifts its fraction of the path's length (measured 0.0017, where the two
+    # heads' vertices are 0.0044 apart).
+    assert np.array_equal(sv, tv) and np.abs(sp - tp).max() < 0.002
+    assert np.abs(s_sp[sv, :2] - t_sp[tv, :2]).max() > 0.004
+    # Scaled alike on every axis: the same places, where the vertices already are.
+    same = source.with_vertices({k: p.vertices * 1.1 + [0.01, -0.02, 0.0] for k, p in source.parts.items()})
+    (sv1, sp1), (tv1, tp1) = contour_pairs(source, same, s_sp, alignment_space(same, same.skin.vertices))
+    assert np.array_equal(sv1, tv1) and np.abs(sp1 - tp1).max() < 1e-9 and np.abs(sp1 - s_sp[sv1, :2]).max() < 1e-9
+    # Without 2.6 the upper lip's inner contour is left out on both heads, without error.
+    partial = Head(target.parts, {k: v for k, v in target.feature_points.items() if k != "2.6"})
+    assert contour_path(partial, CONTOURS[4]) is None
+    (sv2, _), (tv2, _) = contour_pairs(source, partial, s_sp, t_sp)
+    others = {int(k) for p in paths[:4] + paths[5:] for seg in p for k in seg}
+    upper = {int(k) for seg in paths[4] for k in seg} - others
+    assert len(sv2) == len(tv2) and 0 < len(sv2) < len(sv) and upper.isdisjoint(sv2.tolist())
+
+
 # --- against ground truth -------------------------------------------------------------
 
 def test_round_trip_and_ground_truth_on_an_ict_identity(bench, identity):
@@ -280,13 +316,38 @@ def test_round_trip_and_ground_truth_on_an_ict_identity(bench, identity):
     trip_positions = np.mean([_pyun(back[m], shapes[m], n, source.skin.vertices) for m in names])
     truth = bench.scaled_truth(source, identity, names)
     fwd = np.mean([_pyun(there[m], truth[m], n) for m in names])
-    # Measured 2.0 % and 4.5 % (all 53 shapes on three identities: 2.5 % and 6.2 %); with
-    # the piecewise-affine alignment and the plain barycentric blend 2.7 % and 5.0 %, the
-    # first version of the method was at 13 % and 17 %.
-    assert trip < 2.4
-    assert fwd < 5.0
-    # Pyun et al.'s eq. 12 (over the norms of the positions; target 0.3 %): measured 0.020 %.
-    assert trip_positions < 0.04
+    # Measured 1.85 % and 4.26 % (all 53 shapes on three identities: 2.29 % and 6.07 %);
+    # without the contours between the feature points 2.0 % and 4.5 %, with the piecewise-
+    # affine alignment and the plain barycentric blend 2.7 % and 5.0 %, the first version
+    # of the method was at 13 % and 17 %.
+    assert trip < 1.95
+    assert fwd < 4.35
+    # Pyun et al.'s eq. 12 (over the norms of the positions; target 0.3 %): measured 0.0173 %.
+    assert trip_positions < 0.019
+
+
+def test_contours_bring_true_counterparts_closer_on_an_ict_identity(identity):
+    from fmc.clone import align_heads
+
+    source = load_generic_head()
+    tri, _ = triangulation_for(source, identity)
+    s_sp, t_sp = alignment_space(source, source.skin.vertices), alignment_space(identity, identity.skin.vertices)
+    v = source.skin.vertices
+    fps = np.array([source.fp_position(i) for i in ("3.1", "3.3", "3.2", "3.4", "3.7", "3.11", "3.8", "3.12", "2.2",
+                                                    "2.3", "2.4", "2.5", "2.6", "2.7", "2.8", "2.9")])
+    near = np.linalg.norm(v[:, None] - fps[None], axis=2).min(axis=1) < 0.012
+    near[6706:] = False  # the narrow face
+    height = 0.5 * (source.fp_position("4.1")[1] + source.fp_position("4.2")[1]) - source.fp_position("2.1")[1]
+    miss = {}
+    for contours in (False, True):
+        a_s, a_t, _ = align_heads(source, identity, tri, s_sp, t_sp, contours=contours)
+        # Same topology: vertex i's true counterpart is vertex i (mm in the common space).
+        d = 1000 * np.hypot((a_t[:, 0] - a_s[:, 0]) * a_s[:, 2], (a_t[:, 1] - a_s[:, 1]) * height)
+        miss[contours] = np.median(d[near]), np.percentile(d[near], 90)
+    # Measured within 12 mm of the eyes' and the inner lips' points: median 0.386 to
+    # 0.310 mm, 90th percentile 0.945 to 0.859 mm.
+    assert miss[True][0] < 0.32 and miss[True][1] < 0.87
+    assert miss[True][0] < miss[False][0] - 0.05 and miss[True][1] < miss[False][1] - 0.05
 
 
 def test_antialiasing_takes_the_roughness_out_of_dense_to_sparse(bench, identity):
