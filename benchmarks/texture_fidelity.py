@@ -23,8 +23,9 @@ texture (``keep_lighting=True``, the *lit* texture) and with each photo's light 
   skin facing the side camera, in front of the ear; ``side``: the side photo's layer), the
   cheek's brightness step against the front, and the error of the face's left-right
   difference (``recon.fidelity.albedo_error``).
-* Seams: the lit texture's layers blended three ways, mean gradient magnitude in an
-  8-pixel band across the layers' borders (``recon.fidelity.seam_smoothness``).
+* Seams: each texture's layers blended three ways, mean gradient magnitude in an 8-pixel
+  band across the layers' borders (``recon.fidelity.seam_smoothness``; ``albedo_seam_*``
+  for the albedo texture's).
 
 The embedded example (ICT identity 5, photographed the same way) comes first.
 
@@ -63,8 +64,7 @@ def _measure(pair, masks, person, data, ipd, focal, size):
                      "delight_s": r.skin.timings.get("delight", 0.0)}
         if truth is not None:
             out[kind]["albedo"] = albedo_error(r.head, r.skin, truth, r.cameras["side"], skin_tone=person.skin_rgb)
-        if keep:
-            out["seams"] = seam_smoothness(r.skin.layers, r.skin.masks)
+        out["seams" if keep else "albedo_seams"] = seam_smoothness(r.skin.layers, r.skin.masks)
     return out
 
 
@@ -86,8 +86,9 @@ def _print_case(prefix, m):
             print(f"{prefix}_{kind}_texture_albedo_mae_{reg}: {a.mae[reg]:.2f} grey")
         print(f"{prefix}_{kind}_texture_cheek_minus_front: {a.cheek_minus_front:+.2f} grey")
         print(f"{prefix}_{kind}_texture_left_right_error: {a.left_right:.2f} grey")
-    for k, v in m["seams"].items():
-        print(f"{prefix}_seam_gradient_{k}: {v:.3f} grey/px")
+    for key, name in (("seams", "seam_gradient"), ("albedo_seams", "albedo_seam_gradient")):
+        for k, v in m[key].items():
+            print(f"{prefix}_{name}_{k}: {v:.3f} grey/px")
     print(f"{prefix}_delight_time: {m['albedo']['delight_s']:.3f} s")
 
 
@@ -123,7 +124,8 @@ def main(argv=None) -> int:
                      side.psnr_db, side.ssim, side.side_layer_psnr_db, side.cheek_grey,
                      alb["front"].psnr_db, alb["side"].psnr_db, alb["side"].side_layer_psnr_db, alb["side"].cheek_grey,
                      la.mae["face"], la.mae["cheek"], la.cheek_minus_front, la.left_right,
-                     aa.mae["face"], aa.mae["cheek"], aa.cheek_minus_front, aa.left_right, alb["delight_s"]))
+                     aa.mae["face"], aa.mae["cheek"], aa.cheek_minus_front, aa.left_right, alb["delight_s"],
+                     m["albedo_seams"]["multiband"], m["albedo_seams"]["feather"], m["albedo_seams"]["hard"]))
         print(f"identity_{seed}: lit psnr {fid.psnr_db:.2f} dB, ssim {fid.ssim:.4f}; side psnr {side.psnr_db:.2f} dB, "
               f"side layer {side.side_layer_psnr_db:.2f} dB, cheek {side.cheek_grey:+.1f} grey; albedo relit psnr "
               f"{alb['front'].psnr_db:.2f} dB, side {alb['side'].psnr_db:.2f} dB, cheek {alb['side'].cheek_grey:+.1f} "
@@ -137,22 +139,24 @@ def main(argv=None) -> int:
              "albedo_cheek_grey_difference", "lit_texture_albedo_mae_face", "lit_texture_albedo_mae_cheek",
              "lit_texture_cheek_minus_front", "lit_texture_left_right_error", "albedo_texture_albedo_mae_face",
              "albedo_texture_albedo_mae_cheek", "albedo_texture_cheek_minus_front",
-             "albedo_texture_left_right_error", "delight_time")
+             "albedo_texture_left_right_error", "delight_time", "albedo_seam_multiband", "albedo_seam_feather",
+             "albedo_seam_hard")
     units = ("dB", "", "grey/px", "grey/px", "grey/px", "dB", "", "dB", "grey", "dB", "dB", "dB", "grey",
-             "grey", "grey", "grey", "grey", "grey", "grey", "grey", "grey", "s")
-    worst_max = {2, 3, 4, 13, 14, 16, 17, 18, 20, 21}
+             "grey", "grey", "grey", "grey", "grey", "grey", "grey", "grey", "s", "grey/px", "grey/px", "grey/px")
+    worst_max = {2, 3, 4, 13, 14, 16, 17, 18, 20, 21, 22, 23, 24}
     for j, (n, u) in enumerate(zip(names, units)):
         print(f"{n}_median: {np.median(a[:, j]):.4f} {u}".rstrip())
         worst = "max" if j in worst_max else "min"  # signed differences: the min is the darkest
         print(f"{n}_{worst}: {getattr(a[:, j], worst)():.4f} {u}".rstrip())
     ordered = int(np.sum((a[:, 2] < a[:, 3]) & (a[:, 2] < a[:, 4])))
+    ordered_albedo = int(np.sum((a[:, 22] < a[:, 23]) & (a[:, 22] < a[:, 24])))
     print(f"summary: {len(a)} identities; lit texture (unlit render) re-projection PSNR median "
           f"{np.median(a[:, 0]):.1f} dB, side {np.median(a[:, 5]):.1f} dB, cheek {np.median(a[:, 8]):+.1f} grey; "
           f"albedo texture relit with the photo's light PSNR {np.median(a[:, 9]):.1f} dB, side "
           f"{np.median(a[:, 10]):.1f} dB, cheek {np.median(a[:, 12]):+.1f} grey; albedo error (face/cheek) lit "
           f"{np.median(a[:, 13]):.1f}/{np.median(a[:, 14]):.1f}, de-lit {np.median(a[:, 17]):.1f}/"
           f"{np.median(a[:, 18]):.1f} grey; multiresolution seams smoother than feathered and hard in "
-          f"{ordered}/{len(a)}")
+          f"{ordered}/{len(a)} (lit), {ordered_albedo}/{len(a)} (albedo)")
     return 0
 
 

@@ -34,8 +34,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
+from mpeg4.errors import InputError
 from mpeg4.head import Head
 from mpeg4.render import Camera, RenderMesh, render, vertex_normals
 
@@ -136,6 +138,8 @@ def fit_mask(head: Head) -> np.ndarray:
     so not the back of the head and its hair), away from the eyes and lids (3.5, 3.6), the
     brows (4.x), the lips (8.x) and the nostrils (9.1, 9.2, 9.15).
     """
+    from scipy.spatial import cKDTree
+
     v = head.skin.vertices
     fp = head.fp_positions()
     keep = np.ones(len(v), bool)
@@ -152,8 +156,6 @@ def fit_mask(head: Head) -> np.ndarray:
     for prefix, r in (("4.", 0.01), ("8.", 0.008), ("9.", 0.007)):
         pts = [fp[i] for i in fp if i.startswith(prefix) and (prefix != "9." or i in ("9.1", "9.2", "9.15"))]
         if pts:
-            from scipy.spatial import cKDTree
-
             d, _ = cKDTree(np.array(pts)).query(v)
             keep &= d > r
     lips = [fp[i] for i in fp if i.startswith("8.")]
@@ -189,8 +191,6 @@ def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, 
     -------
     Lighting
     """
-    from mpeg4.errors import InputError
-
     sub = (slice(None, None, stride), slice(None, None, stride))
     luma = photo[sub].astype(np.float32) @ _LUMA.astype(np.float32)
     sel = head_mask[sub] & (weight[sub] > 0.5) & (luma > 8) & (luma < 250)  # neither black nor burnt out
@@ -221,8 +221,6 @@ def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, 
             + z * (k[3] + 3 * k[8] * z))
     # The normals come from an 8-bit render: smooth their quantisation steps out of the
     # shading (which is smooth anyway) within the head, so that they do not band the albedo.
-    import cv2
-
     m = head_mask.astype(np.float32)
     full = cv2.GaussianBlur(np.where(head_mask, full, 0).astype(np.float32), (0, 0), smooth_px) / \
         np.maximum(cv2.GaussianBlur(m, (0, 0), smooth_px), 1e-3)

@@ -497,8 +497,8 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
 
         say("taking the photos' lighting out (spherical-harmonic shading fit)")
         t = time.perf_counter()
-        for key in photos:
-            photos[key], lighting[key] = delight_photo(head, photos[key], cams[key].camera)
+        for key, photo in list(photos.items()):
+            photos[key], lighting[key] = delight_photo(head, photo, cams[key].camera)
         times["delight"] = time.perf_counter() - t
 
     say(f"warping the photos into a {size}x{size} texture")

@@ -28,7 +28,7 @@ def _sphere_photo(light, ambient, size=200, albedo=(200.0, 150.0, 120.0), seed=0
 
 @pytest.mark.parametrize("light", [(-0.35, 0.45, 1.0), (0.6, -0.2, 0.8), (0.0, 0.9, 0.5)])
 def test_fitted_shading_follows_any_light_and_ignores_blotches(light):
-    photo, n, mask, shade, alb, blotch = _sphere_photo(light, 0.4)
+    photo, n, mask, shade, _, blotch = _sphere_photo(light, 0.4)
     lit = fit_lighting(photo, n, mask, mask.astype(np.float32))
     # The shading's shape, whatever the light (the fit is never told it): the fitted shading
     # over the true one is the same everywhere up to the scale the fit cannot know. An
@@ -73,11 +73,11 @@ def test_the_albedo_texture_gives_back_the_paint_where_the_lit_one_is_dark(ict_n
     lit, alb = err[True], err[False]
     # At 1024²: the cheek in front of the ear, which the front photo sees at a grazing angle
     # and the light moving with the camera barely reaches, is off the paint by 49 grey levels
-    # in the lit texture (51 darker), by 7 in the albedo one; the face as a whole 37 vs 9; the
-    # cheek's step in brightness against the front of the face -17 vs -4; the face's
-    # left-right difference (the key light comes from the left) 26 vs 6.
+    # in the lit texture (51 darker), by 8 in the albedo one; the face as a whole 37 vs 8.5;
+    # the cheek's step in brightness against the front of the face -17 vs -4; the error of
+    # the face's left-right difference (the key light comes from the left) 26 vs 6.
     assert lit.vertices["cheek"] > 1000 and lit.vertices["face"] > 6000
-    assert alb.mae["cheek"] < 14.0 < 30.0 < lit.mae["cheek"], (alb.mae, lit.mae)
-    assert alb.mae["face"] < 14.0 < 25.0 < lit.mae["face"], (alb.mae, lit.mae)
-    assert abs(alb.cheek_minus_front) < 8.0 < 12.0 < abs(lit.cheek_minus_front), (alb.bias, lit.bias)
-    assert alb.left_right < 11.0 < 18.0 < lit.left_right, (alb.left_right, lit.left_right)
+    assert alb.mae["cheek"] < 14.0 and lit.mae["cheek"] > 30.0, (alb.mae, lit.mae)
+    assert alb.mae["face"] < 14.0 and lit.mae["face"] > 25.0, (alb.mae, lit.mae)
+    assert abs(alb.cheek_minus_front) < 8.0 and abs(lit.cheek_minus_front) > 12.0, (alb.bias, lit.bias)
+    assert alb.left_right < 11.0 and lit.left_right > 18.0, (alb.left_right, lit.left_right)

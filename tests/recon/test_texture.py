@@ -105,12 +105,13 @@ def test_multiresolution_seams_are_smoother_than_a_cut_or_a_feather(example, ide
     for result in cases:
         s = seam_smoothness(result.skin.layers, result.skin.masks)
         assert s["multiband"] < s["feather"] < s["hard"], s
-        # 0.79-0.81 of the feather on lit layers; 0.88-0.90 on the de-lit ones (the default):
-        # their brightness agrees better across the seams, so the feather steps less, while
-        # the front layer's own detail in the seam band, which the front photo sees at a
-        # grazing angle, comes back (its mean gradient there 1.6 -> 2.4 grey/px on the example)
-        # and weighs on all three blends alike.
-        assert s["multiband"] < 0.93 * s["feather"], s
+        # 0.79-0.81 of the feather on lit layers, 0.85-0.86 on the de-lit ones (the default):
+        # their brightness agrees across the seams (the hard cut's gradient falls from
+        # 2.8-3.4 to 2.4-2.9 grey/px, the spline's a little too), so the feather has less
+        # step to smooth, while the front layer's own detail in the seam band, which the front
+        # photo sees at a grazing angle, comes back brighter (its mean gradient there 1.6 -> 1.9
+        # grey/px on the example) and weighs on all three blends alike.
+        assert s["multiband"] < 0.88 * s["feather"], s
 
 
 def test_reprojection_gives_the_photo_back(example, identities):
