@@ -3,7 +3,9 @@
 On the embedded example (its photos and feature points, the head fitted to them), times
 :func:`recon.texture.texture_skin` — what each photo sees of the head, the layout of every
 skin vertex, the side photo warped along the feature lines (and flipped), the three layers
-blended — at two texture sizes with OpenCV's multi-band blender, and the blend alone with
+blended — at two texture sizes with OpenCV's multi-band blender, keeping the photos' light
+(``delight=False``: the target's measure), then with the photos de-lit first (the default,
+:mod:`recon.delight`, which costs the same at any texture size), and the blend alone with
 the scikit-image pyramids at the larger size, in one run. Best of ``--repeat`` runs.
 
 Run: ``python3 benchmarks/texture_speed.py [--repeat 3]``
@@ -40,19 +42,20 @@ def main(argv=None) -> int:
                           focal_px=cam["focal_px"]) for n in ("front", "side")}
     texture_skin(head, pair.front, pair.side, cams["front"], cams["side"], size=512)  # warm-up (GL context)
     results = {}
-    for size in (1024, 2048):
+    for size, delight in ((1024, False), (2048, False), (2048, True)):
         best = None
         for _ in range(args.repeat):
             t0 = time.perf_counter()
-            st = texture_skin(head, pair.front, pair.side, cams["front"], cams["side"], size=size)
+            st = texture_skin(head, pair.front, pair.side, cams["front"], cams["side"], size=size, delight=delight)
             dt = time.perf_counter() - t0
             if best is None or dt < best[0]:
                 best = (dt, st.timings)
-        results[size] = best
+        results[size, delight] = best
         dt, tm = best
-        print(f"texture_{size}_total: {dt:.3f} s")
-        for step in ("visibility", "layout", "warp", "blend"):
-            print(f"texture_{size}_{step}: {tm[step]:.3f} s")
+        name = f"texture_{size}" + ("_delit" if delight else "")
+        print(f"{name}_total: {dt:.3f} s")
+        for step in ("visibility", "layout") + (("delight",) if delight else ()) + ("warp", "blend"):
+            print(f"{name}_{step}: {tm[step]:.3f} s")
     # The two blend implementations on the same layers, in one run.
     layers, masks = st.layers, st.masks
     times = {}
@@ -65,9 +68,10 @@ def main(argv=None) -> int:
         times[method] = best
         print(f"blend_2048_{method}: {best:.3f} s")
     print(f"blend_2048_skimage_over_opencv: {times['skimage'] / times['opencv']:.1f} x")
-    total = results[2048][0]
-    print(f"summary: texture at 2048² in {total:.2f} s (target 1.5 s: {'met' if total <= 1.5 else 'not met'}); "
-          f"OpenCV blend {times['opencv']:.2f} s, scikit-image {times['skimage']:.2f} s")
+    total = results[2048, False][0]
+    delit = results[2048, True]
+    print(f"summary: texture at 2048² in {total:.2f} s (target 1.5 s: {'met' if total <= 1.5 else 'not met'}), "
+          f"de-lit {delit[0]:.2f} s (de-lighting {delit[1]['delight']:.2f} s); OpenCV blend {times['opencv']:.2f} s, scikit-image {times['skimage']:.2f} s")
     return 0
 
 

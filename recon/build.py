@@ -161,7 +161,7 @@ def _check_cameras(cams: dict[str, FittedCamera], pair: PhotoPair, where: str) -
 def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float = DEFAULT_IPD_MM,
                focal_px: float | None = None, method: str = "dffd", texture_size: int = DEFAULT_TEXTURE_SIZE,
                atlas: bool = False, blend: str = "opencv", generic: Head | None = None,
-               progress: Callable[[str], None] | None = None) -> BuildResult:
+               keep_lighting: bool = False, progress: Callable[[str], None] | None = None) -> BuildResult:
     """A textured head from annotated photos.
 
     Parameters
@@ -180,6 +180,11 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
         Implementation of the multiresolution spline.
     generic : Head, optional
         The head to deform (the shipped generic head by default).
+    keep_lighting : bool
+        Keep the photos' light in the texture. By default it is taken out of each photo
+        (:mod:`recon.delight`) and the texture is the skin's albedo, which renderers (the
+        previews, game engines) light themselves; a lit texture rendered with a light is
+        shaded twice.
     progress : callable, optional
         Called with a short message before each step.
 
@@ -212,7 +217,7 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
                                 where=f"{where}, views.{name}")
     _check_cameras(cams, tex_pair, where)
     skin = texture_skin(tex_head, tex_pair.front, tex_pair.side, cams["front"], cams["side"], size=texture_size,
-                        blend=blend, progress=say)
+                        blend=blend, delight=not keep_lighting, progress=say)
     out = textured_head(head, skin, tex_pair.front)
     times["texture"] = time.perf_counter() - t1
     if atlas:
@@ -224,6 +229,7 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
         times["atlas"] = time.perf_counter() - t2
     out.metadata = dict(out.metadata, build=dict(
         camera_residual_px={n: round(c.rms_px, 3) for n, c in cams.items()},
+        texture_lighting="photo" if keep_lighting else "albedo",
         texture_regions=out.metadata.get("texture", {}).get("regions")))
     times["total"] = time.perf_counter() - t0
     return BuildResult(out, skin.cameras, skin, times)
@@ -336,7 +342,7 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
               out_dir: str | os.PathLike, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
               method: str = "dffd", texture_size: int = DEFAULT_TEXTURE_SIZE, atlas: bool = False,
               shape_from: str | os.PathLike | None = None, texture_from: str | os.PathLike | None = None,
-              progress: Callable[[str], None] | None = None, result: list | None = None,
+              keep_lighting: bool = False, progress: Callable[[str], None] | None = None, result: list | None = None,
               created: str | None = None, provenance: dict | None = None) -> dict[str, Path]:
     """``recon build``: write the textured head bundle.
 
@@ -350,7 +356,7 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
     out_dir : path
         The bundle's folder (created). Files of a previous build are replaced only once the
         new ones are complete.
-    ipd_mm, focal_px, method, texture_size, atlas
+    ipd_mm, focal_px, method, texture_size, atlas, keep_lighting
         See :func:`build_head`. Without ``focal_px``, the focal length the photos record
         in their EXIF (:func:`recon.photos.photos_focal_px`), else orthographic cameras.
     shape_from, texture_from : path, optional
@@ -391,9 +397,9 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
         focal_from = "exif" if focal_px is not None else None
         say(note)
     res = build_head(shape, texture, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
-                     texture_size=texture_size, atlas=atlas, progress=say)
+                     texture_size=texture_size, atlas=atlas, keep_lighting=keep_lighting, progress=say)
     options = {"ipd_mm": ipd_mm, "focal_px": focal_px, "focal_from": focal_from, "method": method,
-               "texture_size": texture_size,
+               "texture_size": texture_size, "keep_lighting": keep_lighting,
                "atlas": atlas, "shape_texture_separation": texture is not None}
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

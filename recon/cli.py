@@ -63,6 +63,9 @@ def build(front: Path = typer.Argument(None, help="Front photo (JPEG/PNG); by de
           method: str = typer.Option("dffd", "--method", help="dffd (exact Sibson) or rbf (thin-plate spline)."),
           texture_size: int = typer.Option(2048, "--texture-size", help="Side of the square texture in pixels."),
           atlas: bool = typer.Option(False, "--atlas", help="Re-pack the texture into a non-overlapping atlas (xatlas)."),
+          keep_lighting: bool = typer.Option(False, "--keep-lighting",
+                                             help="Keep the photos' light in the texture (default: take it out, "
+                                                  "an albedo texture for renderers to light)."),
           shape_from: Path = typer.Option(None, "--shape-from", help="Shape from this annotated pair (*.fdp.json)."),
           texture_from: Path = typer.Option(None, "--texture-from", help="Texture from this annotated pair (*.fdp.json).")
           ) -> None:
@@ -70,7 +73,8 @@ def build(front: Path = typer.Argument(None, help="Front photo (JPEG/PNG); by de
     from .build import run_build
 
     paths = run_build(front, side, fdp, out, ipd_mm=ipd, focal_px=focal, method=method, texture_size=texture_size,
-                      atlas=atlas, shape_from=shape_from, texture_from=texture_from, progress=_say)
+                      atlas=atlas, shape_from=shape_from, texture_from=texture_from, keep_lighting=keep_lighting,
+                      progress=_say)
     for kind, path in paths.items():
         typer.echo(f"{kind}: {path}")
 

@@ -25,7 +25,7 @@ from mpeg4.head import Head
 
 from .cameras import FittedCamera
 
-__all__ = ["Fidelity", "SideFidelity", "face_mask", "reprojection", "side_reprojection", "seam_smoothness"]
+__all__ = ["Fidelity", "SideFidelity", "AlbedoError", "albedo_error", "face_mask", "reprojection", "side_reprojection", "seam_smoothness"]
 
 
 @dataclass
@@ -64,7 +64,7 @@ def face_mask(head: Head, front: FittedCamera, shape: tuple[int, int], shrink: i
 
 
 def reprojection(head: Head, photo: np.ndarray, front: FittedCamera, photo_mask: np.ndarray | None = None,
-                 shrink: int = 4) -> Fidelity:
+                 shrink: int = 4, light: tuple | None = None) -> Fidelity:
     """Render ``head`` with the front camera and compare it with ``photo`` in the face,
     where the skin is what the camera sees.
 
@@ -79,8 +79,12 @@ def reprojection(head: Head, photo: np.ndarray, front: FittedCamera, photo_mask:
         Where the head is in the photo (all of it when None).
     shrink : int
         Pixels taken off the region's rim.
+    light : (direction, ambient), optional
+        Render lit so (:func:`mpeg4.render.render`'s ``light`` and ``ambient``): the
+        photo's light, for a de-lit (albedo) texture. Unlit (ambient 1) when None, for a
+        texture that keeps the photo's light.
     """
-    image, skin_seen = _render_skin(head, front)
+    image, skin_seen = _render_skin(head, front, light=light)
     region = face_mask(head, front, photo.shape[:2], shrink) & skin_seen
     if photo_mask is not None:
         region &= cv2.erode(photo_mask.astype(np.uint8), np.ones((2 * shrink + 1,) * 2, np.uint8)) > 0
@@ -88,10 +92,11 @@ def reprojection(head: Head, photo: np.ndarray, front: FittedCamera, photo_mask:
     return Fidelity(psnr, ssim, int(region.sum()))
 
 
-def _render_skin(head: Head, cam: FittedCamera, vertex_colours: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """The head rendered unlit (or its skin with vertex colours), and (H, W) bool where the
-    surface seen is the skin, shrunk by a pixel."""
+def _render_skin(head: Head, cam: FittedCamera, vertex_colours: np.ndarray | None = None,
+                 light: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The head rendered unlit or with ``light`` = (direction, ambient) (or its skin with
+    vertex colours, unlit), and (H, W) bool where the surface seen is the skin, shrunk by
+    a pixel."""
     from mpeg4.preview import head_meshes
     from mpeg4.render import render
 
@@ -102,7 +107,9 @@ def _render_skin(head: Head, cam: FittedCamera, vertex_colours: np.ndarray | Non
         skin[0].vertex_colours = vertex_colours
         skin[0].texture = None
         skin[0].colour = (1.0, 1.0, 1.0)
-    image, depth = render(meshes, cam.camera, return_depth=True, ambient=1.0, samples=4)
+    lit = {"ambient": 1.0} if light is None or vertex_colours is not None else \
+        {"light": light[0], "ambient": float(light[1])}
+    image, depth = render(meshes, cam.camera, return_depth=True, samples=4, **lit)
     # Only where the skin is the surface seen (the eyes and teeth have textures of their own).
     skin_only = render(skin, cam.camera, return_depth=True, samples=0)[1]
     both = np.isfinite(depth) & np.isfinite(skin_only)
@@ -159,7 +166,7 @@ class SideFidelity:
 
 
 def side_reprojection(head: Head, skin, photo: np.ndarray, side: FittedCamera, photo_mask: np.ndarray | None = None,
-                      shrink: int = 4, facing_deg: float = 45.0) -> SideFidelity:
+                      shrink: int = 4, facing_deg: float = 45.0, light: tuple | None = None) -> SideFidelity:
     """Render ``head`` with the side camera and compare it with the side photo over the
     skin the photo sees, and over the cheek in front of the ear.
 
@@ -179,9 +186,9 @@ def side_reprojection(head: Head, skin, photo: np.ndarray, side: FittedCamera, p
     facing_deg : float
         The cheek is front-region skin whose normal is within this angle of the direction
         to the side camera.
+    light : (direction, ambient), optional
+        Render lit so, as :func:`reprojection`.
     """
-    from mpeg4.render import vertex_normals
-
     from .texture import FRONT, SEEN
 
     part = head.parts["skin"]
@@ -189,18 +196,13 @@ def side_reprojection(head: Head, skin, photo: np.ndarray, side: FittedCamera, p
         raise InputError(f"the head's skin has {len(part.vertices)} vertices, the texture was laid out for "
                          f"{len(skin.vertex_region)}", where="side_reprojection",
                          fix="give the head textured with this texture (recon.texture.textured_head)")
-    image, skin_seen = _render_skin(head, side)
+    image, skin_seen = _render_skin(head, side, light=light)
     region = skin_seen.copy()
     if photo_mask is not None:
         region &= cv2.erode(photo_mask.astype(np.uint8), np.ones((2 * shrink + 1,) * 2, np.uint8)) > 0
     psnr, ssim = _compare(image, photo, region)
     # The cheek and the side layer: rendered as white patches on black, shrunk off their rims.
-    v = part.vertices
-    c = side.camera
-    to_cam = (c.centre[None] - v) if c.perspective else np.broadcast_to(c.rotation[2], v.shape)
-    to_cam = to_cam / np.linalg.norm(to_cam, axis=1, keepdims=True)
-    n = vertex_normals(v, part.triangles)
-    facing = np.abs(np.sum(n * to_cam, axis=1)) >= np.cos(np.radians(facing_deg))
+    facing = _facing(part, side, facing_deg)
     patches = {}
     for name, sel in (("cheek", (skin.vertex_region == FRONT) & facing), ("side", skin.vertex_region == SEEN)):
         image_sel, _ = _render_skin(head, side, np.repeat(sel.astype(np.float64)[:, None], 3, axis=1))
@@ -213,6 +215,113 @@ def side_reprojection(head: Head, skin, photo: np.ndarray, side: FittedCamera, p
         d = np.full(3, np.nan)
     side_psnr = _compare(image, photo, patches["side"])[0] if patches["side"].any() else float("nan")
     return SideFidelity(psnr, ssim, int(region.sum()), side_psnr, d, int(cheek_px.sum()))
+
+
+def _facing(part, cam: FittedCamera, facing_deg: float) -> np.ndarray:
+    """(N,) bool: the part's vertices whose normal is within ``facing_deg`` of the direction
+    to the camera (either side)."""
+    from mpeg4.render import vertex_normals
+
+    v = part.vertices
+    c = cam.camera
+    to_cam = (c.centre[None] - v) if c.perspective else np.broadcast_to(c.rotation[2], v.shape)
+    to_cam = to_cam / np.linalg.norm(to_cam, axis=1, keepdims=True)
+    n = vertex_normals(v, part.triangles)
+    return np.abs(np.sum(n * to_cam, axis=1)) >= np.cos(np.radians(facing_deg))
+
+
+@dataclass
+class AlbedoError:
+    """How far a built texture's colours are from the skin's true albedo.
+
+    Attributes
+    ----------
+    mae : dict of str to float
+        Mean absolute colour error (grey levels, mean over RGB) per region: ``face`` (all
+        the skin compared), ``front`` (the front region but the cheek), ``cheek`` (front
+        region facing the side camera within 45°: in front of the ear), ``side`` (the
+        seen side's layer), ``mirrored``.
+    bias : dict of str to float
+        Mean luma of texture minus truth per region (negative: darker than the albedo).
+    cheek_minus_front : float
+        ``bias["cheek"] - bias["front"]``: the step in brightness the texture makes
+        between the face's front and its cheek that the albedo does not.
+    left_right : float
+        Mean absolute luma error of the face's left-right difference: over front-region
+        vertex pairs mirrored across the midline, |(texture_L − texture_R) − (truth_L −
+        truth_R)|.
+    vertices : dict of str to int
+        Vertices compared per region.
+    """
+
+    mae: dict
+    bias: dict
+    cheek_minus_front: float
+    left_right: float
+    vertices: dict
+
+
+def albedo_error(head: Head, skin, truth: np.ndarray, side: FittedCamera, blur_px: float | None = None,
+                 skin_tone: np.ndarray | None = None, tone_tol: float = 45.0) -> AlbedoError:
+    """Compare a built skin texture with the skin's true albedo at its vertices.
+
+    Parameters
+    ----------
+    head : Head
+        Textured with ``skin`` (its skin's first vertices are the originals).
+    skin : recon.texture.SkinTexture
+    truth : (N, 3) float
+        True albedo (RGB, 0–255) per original skin vertex (:func:`recon.synthetic.skin_albedo`).
+    side : FittedCamera
+        The side photo's camera (for the cheek: see :func:`side_reprojection`).
+    blur_px : float, optional
+        Gaussian blur of the texture before sampling, texels (size / 512 by default: the
+        truth's blur at the scale of the face).
+    skin_tone : (3,) float, optional
+        Only vertices whose true colour is within ``tone_tol`` (RGB distance) of it are
+        compared: the skin, not the hair, brows, lips or lashes.
+    """
+    from scipy.ndimage import map_coordinates
+    from scipy.spatial import cKDTree
+
+    from .texture import FRONT, MIRRORED, SEEN
+
+    part = head.parts["skin"]
+    tex = part.texture.astype(np.float32)
+    size = tex.shape[0]
+    blur = size / 512 if blur_px is None else blur_px
+    if blur:
+        tex = cv2.GaussianBlur(tex, (0, 0), blur)
+    uv = skin.uv
+    x = (uv[:, 0] * size - 0.5).astype(np.float32)
+    y = ((1.0 - uv[:, 1]) * size - 0.5).astype(np.float32)
+    got = np.stack([map_coordinates(tex[..., c], [y, x], order=1, mode="nearest") for c in range(3)],
+                   axis=1).astype(np.float64)
+    want = np.asarray(truth, np.float64)[skin.source]
+    ok = np.all(np.isfinite(want), axis=1)
+    if skin_tone is not None:
+        ok &= np.linalg.norm(want - np.asarray(skin_tone, float), axis=1) < tone_tol
+    facing = _facing(part, side, 45.0)
+    r = skin.vertex_region
+    regions = {"face": ok & np.isin(r, (FRONT, SEEN, MIRRORED)), "front": ok & (r == FRONT) & ~facing,
+               "cheek": ok & (r == FRONT) & facing, "side": ok & (r == SEEN), "mirrored": ok & (r == MIRRORED)}
+    luma = np.array([0.299, 0.587, 0.114])
+    d = got - want
+    mae = {k: float(np.abs(d[m]).mean()) if m.any() else float("nan") for k, m in regions.items()}
+    bias = {k: float((d[m] @ luma).mean()) if m.any() else float("nan") for k, m in regions.items()}
+    # Left-right: front-region originals paired with the vertex nearest their mirror image.
+    n0 = len(truth)
+    orig = np.flatnonzero(regions["front"][:n0] | regions["cheek"][:n0])
+    v = part.vertices[orig]
+    left = orig[v[:, 0] > 0.005]
+    right = orig[v[:, 0] < -0.005]
+    lr = float("nan")
+    if len(left) and len(right):
+        dist, k = cKDTree(part.vertices[right]).query(part.vertices[left] * [-1.0, 1.0, 1.0])
+        pair = dist < 0.002
+        a, b = left[pair], right[k[pair]]
+        lr = float(np.abs((got[a] - got[b]) @ luma - (want[a] - want[b]) @ luma).mean())
+    return AlbedoError(mae, bias, bias["cheek"] - bias["front"], lr, {k: int(m.sum()) for k, m in regions.items()})
 
 
 def seam_smoothness(layers, masks, band: int = 8) -> dict[str, float]:

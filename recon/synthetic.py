@@ -31,11 +31,16 @@ from mpeg4.render import Camera, RenderMesh, look_rotation, render, vertex_norma
 from .bake import fill_empty, interpolate, rasterize_uv
 from .materials import eye_texture
 
-__all__ = ["default_ict_path", "load_ict", "identity_vertices", "identity_head", "Person", "make_person",
+__all__ = ["PHOTO_LIGHT", "PHOTO_AMBIENT", "skin_albedo", "default_ict_path", "load_ict", "identity_vertices", "identity_head", "Person", "make_person",
            "photograph", "PhotoPair", "synthetic_pair", "view_camera", "visible_points", "perfect_detector",
            "CONVENTIONS", "MeshFile", "remeshed_identity"]
 
 #: ICT parts that make up the generic head's skin, and their UV tiles.
+#: The light of :func:`photograph`: the direction towards the key light in the camera's
+#: frame (it moves with the camera), and the ambient share (see :func:`mpeg4.render.render`).
+PHOTO_LIGHT = (-0.35, 0.45, 1.0)
+PHOTO_AMBIENT = 0.42
+
 _SKIN_PARTS = ("Face", "Head and Neck", "Mouth socket", "Eye socket left", "Eye socket right")
 
 
@@ -345,6 +350,35 @@ def make_person(seed: int, data: dict | None = None, generic: Head | None = None
     return Person(seed, head, meshes, iris_rgb, hair_rgb, skin_rgb, eye_texture(256, tuple(iris_rgb)))
 
 
+def skin_albedo(person: Person, data: dict | None = None, blur_px: float = 2.0) -> np.ndarray:
+    """(N, 3) float64: the painted colour (RGB, 0–255, no light) at each skin vertex of the
+    person's head — the albedo a de-lit texture should give back.
+
+    Sampled from the painted tiles at each vertex's ICT texture coordinate (a vertex on a
+    tile's border takes the last tile that has it), after a Gaussian blur of ``blur_px``
+    texels, so that a texel's misregistration does not count as colour error.
+    """
+    import cv2
+    from scipy.ndimage import map_coordinates
+
+    data = load_ict() if data is None else data
+    tris, uv, _ = _skin_layout(data)
+    n = person.head.parts["skin"].n_vertices
+    out = np.full((n, 3), np.nan)
+    tile_of = np.floor(uv[:, :, 0].mean(axis=1)).astype(int)
+    for t, mesh in enumerate(person.skin_meshes):
+        sel = np.flatnonzero(tile_of == t)
+        img = cv2.GaussianBlur(mesh.texture.astype(np.float32), (0, 0), blur_px) if blur_px else \
+            mesh.texture.astype(np.float32)
+        s = img.shape[0]
+        corner_uv = uv[sel].reshape(-1, 2) - [t, 0.0]
+        x = (corner_uv[:, 0] * s - 0.5).astype(np.float32)
+        y = ((1.0 - corner_uv[:, 1]) * s - 0.5).astype(np.float32)
+        rgb = np.stack([map_coordinates(img[..., c], [y, x], order=1, mode="nearest") for c in range(3)], axis=1)
+        out[tris[sel].reshape(-1)] = rgb
+    return out
+
+
 # --- cameras and photos ------------------------------------------------------------------------
 
 def view_camera(view: str, target: np.ndarray, width: int, height: int, focal_px: float | None = None,
@@ -378,7 +412,7 @@ def photograph(person: Person, camera: Camera, background=(0.86, 0.87, 0.89)) ->
     The backdrop darkens a little towards the bottom, like a studio wall.
     """
     img, depth = render(person.meshes(), camera, background=background, return_depth=True, samples=8,
-                        ambient=0.42, light=(-0.35, 0.45, 1.0))
+                        ambient=PHOTO_AMBIENT, light=PHOTO_LIGHT)
     mask = np.isfinite(depth)
     h = img.shape[0]
     shade = np.linspace(1.02, 0.9, h)[:, None, None]

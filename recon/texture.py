@@ -309,6 +309,11 @@ class SkinTexture:
         used (for the seam measurements).
     timings : dict of str to float
         Seconds per step.
+    seen_sign : float
+        +1 if the side photo shows the face's left, -1 its right.
+    lighting : dict of str to recon.delight.Lighting
+        The lighting fitted to the ``front`` and ``side`` photos and taken out of them
+        (empty when the texture keeps the photos' light).
     """
 
     texture: np.ndarray
@@ -322,6 +327,7 @@ class SkinTexture:
     masks: list[np.ndarray] = field(repr=False, default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
     seen_sign: float = 1.0
+    lighting: dict = field(repr=False, default_factory=dict)
 
 
 def photo_background(photo: np.ndarray, tol: float = 14.0, border: int = 6) -> np.ndarray:
@@ -370,7 +376,7 @@ def _depth(meshes, cam: Camera) -> np.ndarray:
 
 def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, front: FittedCamera,
                  side: FittedCamera, size: int = 2048, blend: str = "opencv", levels: int | None = None,
-                 progress: Callable[[str], None] | None = None) -> SkinTexture:
+                 delight: bool = True, progress: Callable[[str], None] | None = None) -> SkinTexture:
     """Build the skin's texture from the two photos and give every skin vertex a texture
     coordinate.
 
@@ -388,6 +394,10 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
         Implementation of the multiresolution spline (:func:`blend_multiband`).
     levels : int, optional
         Pyramid levels of the blend.
+    delight : bool
+        Take each photo's lighting out before texturing (:func:`recon.delight.delight_photo`):
+        the texture is then the skin's albedo, to be lit by whoever renders it. False keeps
+        the photos' light in the texture.
     progress : callable, optional
         Called with a short message before each step.
 
@@ -468,19 +478,32 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
     uv = np.c_[(tex_px[:, 0] + 0.5) / size, 1.0 - (tex_px[:, 1] + 0.5) / size]
     times["layout"] = time.perf_counter() - t1
 
-    say(f"warping the photos into a {size}x{size} texture")
-    t2 = time.perf_counter()
-    fill = {}
-    for key, photo, d in (("front", front_photo, depth["front"]), ("side", side_photo, depth["side"])):
+    photos = {"front": front_photo, "side": side_photo}
+    head_masks = {}
+    for key, photo in photos.items():
+        d = depth[key]
         if d.shape != photo.shape[:2]:
             raise InputError(f"the {key} photo is {photo.shape[1]}x{photo.shape[0]} but its camera is "
                              f"{d.shape[1]}x{d.shape[0]}", where="texture", fix="fit the camera to this photo")
+        # The backdrop is found in the photo as taken (de-lit, it would no longer match its border).
         head_mask = np.isfinite(d) & ~photo_background(photo)
-        head_mask = cv2.erode(head_mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
-        if not head_mask.any():
+        head_masks[key] = cv2.erode(head_mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+        if not head_masks[key].any():
             raise InputError(f"the head does not show in the {key} photo", where="texture",
                              fix="check the feature points of that photo")
-        fill[key] = _fill_outside(photo, head_mask)
+    lighting = {}
+    if delight:
+        from .delight import delight_photo
+
+        say("taking the photos' lighting out (spherical-harmonic shading fit)")
+        t = time.perf_counter()
+        for key, photo in list(photos.items()):
+            photos[key], lighting[key] = delight_photo(head, photo, cams[key].camera)
+        times["delight"] = time.perf_counter() - t
+
+    say(f"warping the photos into a {size}x{size} texture")
+    t2 = time.perf_counter()
+    fill = {key: _fill_outside(photos[key], head_masks[key]) for key in photos}
     layers = [cv2.warpAffine(fill["front"], A[:2], (size, size), flags=cv2.INTER_LINEAR,
                              borderMode=cv2.BORDER_REPLICATE)]
     grid = max(1, size // 256)  # the warps are piecewise affine: a coarse map, linearly refined
@@ -504,7 +527,7 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
     texture[size - patch:, :patch] = _HIDDEN_RGB
     times["blend"] = time.perf_counter() - t3
     times["total"] = time.perf_counter() - t0
-    return SkinTexture(texture, uv, source, tris, tregion, region, cams, layers, masks, times, seen_sign)
+    return SkinTexture(texture, uv, source, tris, tregion, region, cams, layers, masks, times, seen_sign, lighting)
 
 
 def _layer_masks(A: np.ndarray, polygon: np.ndarray, pts, front: FittedCamera, size: int,

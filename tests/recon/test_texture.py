@@ -9,8 +9,11 @@ from recon.build import PhotoPair, build_head, load_pair
 from recon.cameras import fit_camera
 from recon.example import EXAMPLE_FDP, example_camera
 from recon.fidelity import reprojection, seam_smoothness, side_reprojection
+from recon.synthetic import PHOTO_AMBIENT, PHOTO_LIGHT
 from recon.texture import FRONT, HIDDEN, feature_line, texture_skin, vertex_regions
 from recon.warp import FeatureLineWarp
+
+PHOTO = (PHOTO_LIGHT, PHOTO_AMBIENT)  # the light the example and the identities were photographed in
 
 
 @pytest.fixture(scope="module")
@@ -102,20 +105,29 @@ def test_multiresolution_seams_are_smoother_than_a_cut_or_a_feather(example, ide
     for result in cases:
         s = seam_smoothness(result.skin.layers, result.skin.masks)
         assert s["multiband"] < s["feather"] < s["hard"], s
-        assert s["multiband"] < 0.85 * s["feather"], s
+        # 0.79-0.81 of the feather on lit layers, 0.85-0.86 on the de-lit ones (the default):
+        # their brightness agrees across the seams (the hard cut's gradient falls from
+        # 2.8-3.4 to 2.4-2.9 grey/px, the spline's a little too), so the feather has less
+        # step to smooth, while the front layer's own detail in the seam band, which the front
+        # photo sees at a grazing angle, comes back brighter (its mean gradient there 1.6 -> 1.9
+        # grey/px on the example) and weighs on all three blends alike.
+        assert s["multiband"] < 0.88 * s["feather"], s
 
 
 def test_reprojection_gives_the_photo_back(example, identities):
-    # The front region is the front photo resampled twice (into the texture, then onto the
-    # screen) and evened out towards the side photos by the spline's coarsest band; on the
-    # ten identities of benchmarks/texture_fidelity.py that costs 34.6-39.1 dB, SSIM >= 0.977.
-    # 30 dB (an RMS error of 8 grey levels) would mean texture in the wrong place; the
-    # example is a JPEG (its blocks cost ~5 dB more).
+    # The texture is the skin's albedo (the photos' light taken out), so it is rendered with
+    # the photos' light (which the de-lighting never sees) to be compared with them. The
+    # front region is the front photo divided by its fitted shading, resampled twice (into
+    # the texture, then onto the screen), evened out towards the side photos by the spline's
+    # coarsest band, and relit on the fitted head's normals; 30 dB (an RMS error of 8 grey
+    # levels) would mean texture in the wrong place or the light not taken out evenly. The
+    # example is a JPEG (its blocks cost ~5 dB more). benchmarks/texture_fidelity.py gives
+    # the figures, lit and de-lit.
     pair, result = example
-    fid = reprojection(result.head, pair.front, result.cameras["front"])
+    fid = reprojection(result.head, pair.front, result.cameras["front"], light=PHOTO)
     assert fid.psnr_db > 27.0 and fid.ssim > 0.95 and fid.pixels > 100_000
     for sp, r in identities:
-        fid = reprojection(r.head, sp.front, r.cameras["front"], sp.masks["front"])
+        fid = reprojection(r.head, sp.front, r.cameras["front"], sp.masks["front"], light=PHOTO)
         assert fid.psnr_db > 30.0 and fid.ssim > 0.95, fid
 
 
@@ -124,16 +136,19 @@ def test_side_reprojection_gives_the_side_layer_back_and_weighs_the_cheek(exampl
 
     pair, result = example
     side = result.cameras["side"]
-    fid = side_reprojection(result.head, result.skin, pair.side, side)
-    # The skin the texture takes from the side photo comes back like the front region in
-    # the front photo (31.7 dB on the example at 2048²). The cheek in front of the ear, which
-    # it takes from the front photo, seen there at a grazing angle, is far darker (-62 grey
-    # levels on the example, 19.4 dB over the whole side view): benchmarks/texture_fidelity.py
-    # reports it; it is not pinned here, so that a fix does not fail the test.
-    assert fid.side_layer_psnr_db > 28.0 and fid.pixels > 200_000 and fid.cheek_pixels > 20_000, fid
+    fid = side_reprojection(result.head, result.skin, pair.side, side, light=PHOTO)
+    # The skin the texture takes from the side photo comes back, relit with the photo's
+    # light, like the front region in the front photo: 28.6 dB on the example at 1024²
+    # (31.7 dB for the lit texture rendered unlit, which needs no light on the fitted
+    # head's normals). The cheek in front of the ear, which the texture takes from the front
+    # photo, seen there at a grazing angle, was 62 grey levels darker than the side photo in
+    # the lit texture; de-lit and relit it is within a few (benchmarks/texture_fidelity.py;
+    # tests/recon/test_delight.py holds it against the paint).
+    assert fid.side_layer_psnr_db > 26.0 and fid.pixels > 200_000 and fid.cheek_pixels > 20_000, fid
     assert np.isfinite(fid.psnr_db) and -255.0 < fid.cheek_grey < 255.0, fid
     # The cheek's difference is a mean over the right pixels: lightening the texture by
-    # 20 grey levels lightens it by 20 (where nothing clips).
+    # 20 grey levels lightens its unlit render by 20 (where nothing clips).
+    fid = side_reprojection(result.head, result.skin, pair.side, side)
     brighter = copy.deepcopy(result.head)
     tex = brighter.parts["skin"].texture
     brighter.parts["skin"].texture = np.clip(tex.astype(np.int16) + 20, 0, 255).astype(np.uint8)

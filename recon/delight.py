@@ -1,0 +1,255 @@
+"""The light taken out of a photo of the fitted head: an albedo image for the texture.
+
+Each photo carries its own lighting, and the light moves with the camera: skin one photo
+sees head-on, the other sees at a grazing angle and far darker, so one lit texture cannot
+match both photos. :func:`delight_photo` fits, per photo, a low-order lighting model to the
+skin — second-order spherical harmonics of the surface normal (nine coefficients), as
+Ramamoorthi and Hanrahan showed suffice for a Lambertian surface under any distant light —
+assuming that the skin's albedo is smooth and near-constant at low frequency, and divides
+the photo by the fitted shading.
+
+* The normals come from the fitted head rendered with the photo's fitted camera
+  (:func:`normal_image`), in the camera's frame.
+* The fit is a robust (iteratively reweighted, Tukey biweight) least-squares fit of the
+  photo's luma to the nine harmonics over the skin the feature points tell from the eyes,
+  brows, lips, nostrils and hair (:func:`fit_mask`); what is left of the hair, lashes and
+  shadows falls to the robust weights. Photos are used as they are encoded: a power-law
+  encoding keeps albedo × shading a product, so the division holds either way.
+* The fit knows only the scale of albedo × light intensity, not each. The shading is
+  scaled so that its brightest value over the fitted skin is 1: the albedo is the colour a
+  surface shows facing the light squarely (with a white key light, the paint's colour).
+* Where the shading falls below :data:`MIN_SHADING` of that (grazing light, deep shadow)
+  it is held there, so that noise is not blown up; :attr:`Lighting.trust` says where the
+  division is to be trusted.
+
+References
+----------
+R. Ramamoorthi and P. Hanrahan, "An efficient representation for irradiance environment
+maps", SIGGRAPH 2001.
+R. Basri and D. W. Jacobs, "Lambertian reflectance and linear subspaces", IEEE PAMI 25(2),
+2003.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from mpeg4.errors import InputError
+from mpeg4.head import Head
+from mpeg4.render import Camera, RenderMesh, render, vertex_normals
+
+__all__ = ["Lighting", "MIN_SHADING", "sh_basis", "normal_image", "fit_mask", "fit_lighting", "delight_photo"]
+
+#: Shading (share of its brightest) below which the division is not trusted and held.
+MIN_SHADING = 0.25
+
+_LUMA = np.array([0.299, 0.587, 0.114])
+
+
+@dataclass
+class Lighting:
+    """A photo's fitted lighting.
+
+    Attributes
+    ----------
+    coefficients : (9,) float64
+        Of :func:`sh_basis` for the photo's luma (grey levels), camera frame.
+    peak : float
+        The brightest fitted luma over the fitted skin; shading is the harmonics over it.
+    shading : (H, W) float32
+        The shading at every pixel of the head (1 elsewhere), clamped to
+        [:data:`MIN_SHADING`, 1.25].
+    trust : (H, W) bool
+        Pixels of the head whose shading is at least :data:`MIN_SHADING` (unclamped).
+    fit_pixels : int
+        Pixels the fit used, and ``inlier_share`` the share of them the robust weights kept.
+    """
+
+    coefficients: np.ndarray
+    peak: float
+    shading: np.ndarray
+    trust: np.ndarray
+    fit_pixels: int
+    inlier_share: float
+
+    @property
+    def direction(self) -> np.ndarray:
+        """(3,) unit direction (camera frame) of the fitted light's first-order part."""
+        d = self.coefficients[1:4]
+        n = np.linalg.norm(d)
+        return d / n if n > 0 else d
+
+
+def sh_basis(normals: np.ndarray) -> np.ndarray:
+    """(K, 9) real spherical harmonics up to order 2 (unnormalised) at (K, 3) unit normals:
+    1, x, y, z, xy, xz, yz, x² − y², 3z² − 1."""
+    n = np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+    x, y, z = n.T
+    return np.stack([np.ones_like(x), x, y, z, x * y, x * z, y * z, x * x - y * y, 3 * z * z - 1], axis=1)
+
+
+def normal_image(head: Head, camera: Camera, weights: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The head's surface normals at every pixel of a camera's image.
+
+    Parameters
+    ----------
+    head : Head
+    camera : Camera
+    weights : (N,) float in [0, 1], optional
+        A value per skin vertex, rendered alongside (e.g. :func:`fit_mask`).
+
+    Returns
+    -------
+    normals : (H, W, 3) float32
+        Unit normals in the camera's frame (x right, y up, z towards the viewer); zero
+        where the head is not drawn.
+    head_mask : (H, W) bool
+        Where it is drawn.
+    weight : (H, W) float32
+        ``weights`` interpolated over the skin (0 elsewhere; all 0 when not given).
+    """
+    meshes, wmeshes = [], []
+    R = camera.rotation
+    for name, p in head.parts.items():
+        n = vertex_normals(p.vertices, p.triangles) @ R.T
+        meshes.append(RenderMesh(p.vertices, p.triangles, vertex_colours=0.5 + 0.5 * n, colour=(1.0, 1.0, 1.0)))
+        w = np.asarray(weights, float) if (name == "skin" and weights is not None) else np.zeros(len(p.vertices))
+        wmeshes.append(RenderMesh(p.vertices, p.triangles, vertex_colours=np.repeat(w[:, None], 3, axis=1),
+                                  colour=(1.0, 1.0, 1.0)))
+    img, depth = render(meshes, camera, background=(0.5, 0.5, 0.5), return_depth=True, samples=0, ambient=1.0)
+    mask = np.isfinite(depth)
+    n = img.astype(np.float32) / 127.5 - 1.0
+    n /= np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-6)
+    n[~mask] = 0.0
+    weight = np.zeros(mask.shape, np.float32)
+    if weights is not None:
+        weight = render(wmeshes, camera, background=(0.0, 0.0, 0.0), samples=0, ambient=1.0)[..., 0] / 255.0
+    return n, mask, weight.astype(np.float32)
+
+
+def fit_mask(head: Head) -> np.ndarray:
+    """(N,) float: 1 on the skin vertices whose colour is skin to the fit, 0 elsewhere.
+
+    From the feature points: below the hairline (11.1–11.3) and in front of the ears (10.x,
+    so not the back of the head and its hair), away from the eyes and lids (3.5, 3.6), the
+    brows (4.x), the lips (8.x) and the nostrils (9.1, 9.2, 9.15).
+    """
+    from scipy.spatial import cKDTree
+
+    v = head.skin.vertices
+    fp = head.fp_positions()
+    keep = np.ones(len(v), bool)
+    hair = [fp[i][1] for i in ("11.1", "11.2", "11.3") if i in fp]
+    if hair:
+        keep &= v[:, 1] < min(hair) - 0.008
+    ears = [fp[i][2] for i in ("10.9", "10.10", "10.7", "10.8") if i in fp]
+    if ears:
+        keep &= v[:, 2] > np.mean(ears) - 0.01
+    for i in ("3.5", "3.6"):
+        if i in fp:
+            d = (v - fp[i]) / (0.024, 0.016, 0.03)
+            keep &= np.sum(d * d, axis=1) > 1.0
+    for prefix, r in (("4.", 0.01), ("8.", 0.008), ("9.", 0.007)):
+        pts = [fp[i] for i in fp if i.startswith(prefix) and (prefix != "9." or i in ("9.1", "9.2", "9.15"))]
+        if pts:
+            d, _ = cKDTree(np.array(pts)).query(v)
+            keep &= d > r
+    lips = [fp[i] for i in fp if i.startswith("8.")]
+    if lips:  # inside the lips' box too (the contour points are sparse)
+        lp = np.array(lips)
+        lo, hi = lp.min(axis=0) - 0.004, lp.max(axis=0) + 0.004
+        inside = np.all((v[:, :2] > lo[:2]) & (v[:, :2] < hi[:2]), axis=1) & (v[:, 2] > lo[2] - 0.01)
+        keep &= ~inside
+    return keep.astype(np.float64)
+
+
+def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, weight: np.ndarray,
+                 stride: int = 3, iterations: int = 8, ridge: float = 1e-3, smooth_px: float = 2.0) -> Lighting:
+    """Fit second-order spherical-harmonic lighting to a photo's skin.
+
+    Parameters
+    ----------
+    photo : (H, W, 3) uint8
+    normals, head_mask, weight
+        :func:`normal_image` of the head with the photo's camera (``weight`` > 0.5 is
+        the skin to fit).
+    stride : int
+        Every ``stride``-th pixel each way is fitted.
+    iterations : int
+        Reweighting passes (Tukey's biweight on the relative residual, scale 4.685 MAD).
+    ridge : float
+        Tikhonov damping (share of the normal matrix's trace) for the harmonics a photo
+        sees over part of the sphere only.
+    smooth_px : float
+        Gaussian blur of the shading inside the head, pixels.
+
+    Returns
+    -------
+    Lighting
+    """
+    sub = (slice(None, None, stride), slice(None, None, stride))
+    luma = photo[sub].astype(np.float32) @ _LUMA.astype(np.float32)
+    sel = head_mask[sub] & (weight[sub] > 0.5) & (luma > 8) & (luma < 250)  # neither black nor burnt out
+    if sel.sum() < 200:
+        raise InputError(f"only {int(sel.sum())} pixels of skin to fit the photo's lighting to", where="de-lighting",
+                         fix="check the head's fit to the photo, or keep the photo's lighting (--keep-lighting)")
+    B = sh_basis(normals[sub][sel])
+    y = luma[sel].astype(np.float64)
+    w = np.ones(len(y))
+    damp = np.diag([0.0] + [1.0] * 8)
+    for _ in range(iterations):
+        BW = B * w[:, None]
+        A = BW.T @ B
+        c = np.linalg.solve(A + ridge * np.trace(A) / 9 * damp, BW.T @ y)
+        fit = B @ c
+        r = y / np.maximum(fit, 1e-6) - 1.0
+        s = 1.4826 * np.median(np.abs(r[w > 0] - np.median(r[w > 0]))) + 1e-6
+        u = r / (4.685 * s)
+        w = np.where(np.abs(u) < 1, (1 - u * u) ** 2, 0.0)
+    fitted = B @ c
+    peak = float(np.percentile(fitted[w > 0], 99.5))
+    if not peak > 0:
+        raise InputError("the fitted lighting is dark everywhere", where="de-lighting",
+                         fix="keep the photo's lighting (--keep-lighting)")
+    k = (c / peak).astype(np.float32)
+    x, y, z = normals[..., 0], normals[..., 1], normals[..., 2]
+    full = (k[0] - k[8] + x * (k[1] + k[4] * y + k[5] * z + k[7] * x) + y * (k[2] + k[6] * z - k[7] * y)
+            + z * (k[3] + 3 * k[8] * z))
+    # The normals come from an 8-bit render: smooth their quantisation steps out of the
+    # shading (which is smooth anyway) within the head, so that they do not band the albedo.
+    m = head_mask.astype(np.float32)
+    full = cv2.GaussianBlur(np.where(head_mask, full, 0).astype(np.float32), (0, 0), smooth_px) / \
+        np.maximum(cv2.GaussianBlur(m, (0, 0), smooth_px), 1e-3)
+    trust = head_mask & (full >= MIN_SHADING)
+    shading = np.where(head_mask, np.clip(full, MIN_SHADING, 1.25), 1.0).astype(np.float32)
+    return Lighting(c, peak, shading, trust, int(sel.sum()), float(np.mean(w > 0)))
+
+
+def delight_photo(head: Head, photo: np.ndarray, camera: Camera, mask: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, Lighting]:
+    """A photo of the fitted head with its lighting taken out.
+
+    Parameters
+    ----------
+    head : Head
+        Fitted to the person (the photo's feature points).
+    photo : (H, W, 3) uint8
+    camera : Camera
+        The photo's fitted camera.
+    mask : (N,) float, optional
+        The skin vertices to fit (:func:`fit_mask` by default).
+
+    Returns
+    -------
+    albedo : (H, W, 3) uint8
+        The photo divided by the fitted shading where the head is, unchanged elsewhere.
+    lighting : Lighting
+    """
+    normals, head_mask, weight = normal_image(head, camera, fit_mask(head) if mask is None else mask)
+    light = fit_lighting(photo, normals, head_mask, weight)
+    out = photo.astype(np.float32) / light.shading[..., None]
+    return np.clip(np.round(out), 0, 255).astype(np.uint8), light
