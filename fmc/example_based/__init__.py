@@ -25,12 +25,13 @@ References
 
 from .cardinal import CardinalBasis, cubic_bspline
 from .key_models import (EMOTIONAL, VERBAL, KeyModels, combined_name, composite, composite_key_models,
-                         key_models_from_shapes, vertex_importance)
+                         key_models_from_shapes, smooth_importance, vertex_importance)
 from .parameters import FEATURE_POINTS, Parameterisation, feature_matrix, load_feature_points
 from .retarget import (KEY_MODEL_SOURCES, Retargeter, read_animation, retarget, source_key_models, target_key_models,
                        write_retargeted)
 
 __all__ = ["CardinalBasis", "cubic_bspline", "EMOTIONAL", "VERBAL", "KeyModels", "combined_name", "composite",
-           "composite_key_models", "key_models_from_shapes", "vertex_importance", "FEATURE_POINTS",
+           "composite_key_models", "key_models_from_shapes", "smooth_importance", "vertex_importance",
+           "FEATURE_POINTS",
            "Parameterisation", "feature_matrix", "load_feature_points", "KEY_MODEL_SOURCES", "Retargeter",
            "read_animation", "retarget", "source_key_models", "target_key_models", "write_retargeted"]

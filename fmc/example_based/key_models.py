@@ -10,8 +10,11 @@ ARKit-named shapes by the viseme and expression mixes of ``fmc/data/high_level_s
 Compositing (Pyun et al., section 3 and the appendix) makes a key-model for every pair of
 an emotional and a verbal key-model: each vertex gets an importance for speech,
 :func:`vertex_importance`, and :func:`composite` keeps the verbal displacement where the
-importance is at least 0.5 and the emotional one elsewhere, adding of the other only its
-component perpendicular to the kept one.
+importance is high and the emotional one where it is low, adding of the other only its
+component perpendicular to the kept one. Unlike the paper's hard switch at 0.5, the
+importance is spread over the mesh (:func:`smooth_importance`), the two are blended across
+a band of it, and the projection is softened for barely moving vertices, so that the skin
+does not tear where the rule changes (:func:`composite` says why).
 
 References
 ----------
@@ -32,8 +35,8 @@ from mpeg4.catalogue import EXPRESSIONS, VISEMES
 from mpeg4.errors import InputError
 from mpeg4.head import Head, SparseDisplacement
 
-__all__ = ["KeyModels", "key_models_from_shapes", "vertex_importance", "composite", "composite_key_models",
-           "VERBAL", "EMOTIONAL", "combined_name"]
+__all__ = ["KeyModels", "key_models_from_shapes", "vertex_importance", "smooth_importance", "composite",
+           "composite_key_models", "VERBAL", "EMOTIONAL", "combined_name"]
 
 #: Names of the verbal key-models :func:`key_models_from_shapes` builds: the 14 MPEG-4 visemes.
 VERBAL = tuple(f"viseme_{VISEMES[k].name}" for k in range(1, 15))
@@ -271,7 +274,8 @@ def vertex_importance(neutral: np.ndarray, verbal: np.ndarray, emotional: np.nda
        noticeably); elsewhere its importance is its share ``a_v / (a_v + a_e)`` of the
        two (0 where neither moves).
 
-    :func:`composite` treats vertices of importance at least 0.5 as verbal. The paper
+    :func:`composite` treats vertices of importance at least 0.75 as verbal, at most 0.25
+    as emotional, and blends between (after :func:`smooth_importance`). The paper
     gives the roles of S_1, S_2, L_p and L_e; the combination in step 3 and the default
     values (S_1 = 0.5, S_2 = 0.3, and in :func:`composite_key_models` L_p = MW0 / 4,
     L_e = ES0 / 4) are this project's.
@@ -313,24 +317,97 @@ def vertex_importance(neutral: np.ndarray, verbal: np.ndarray, emotional: np.nda
     return np.where(a_v >= s2, 1.0, share)
 
 
-def composite(verbal: np.ndarray, emotional: np.ndarray, importance: np.ndarray) -> np.ndarray:
+def smooth_importance(importance: np.ndarray, triangles: np.ndarray, steps: int = 20) -> np.ndarray:
+    """The importance diffused along a mesh's edges, so that it changes over a band.
+
+    Each step moves every vertex halfway to the mean of its edge neighbours (a uniform
+    Laplacian step); after ``steps`` of them a jump from one vertex to the next is spread
+    over about ``2 * sqrt(steps)`` edges on either side. Vertices deep inside a verbal or an
+    emotional region keep their importance; vertices on no triangle keep theirs.
+
+    Parameters
+    ----------
+    importance : (V,) float
+        Verbal importance (:func:`vertex_importance`).
+    triangles : (M, 3) int
+        The mesh's triangles, indices into the V vertices (several parts' stacked, with
+        their vertex offsets added, diffuse each within its own part).
+    steps : int
+        Number of diffusion steps; 0 returns the importance unchanged.
+
+    Returns
+    -------
+    (V,) float
+        In [0, 1] when the importance is.
+    """
+    from scipy.sparse import coo_matrix
+
+    out = np.asarray(importance, dtype=np.float64).copy()
+    tri = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if steps < 0:
+        raise InputError(f"the number of smoothing steps must be at least 0, got {steps}")
+    if steps == 0 or not len(tri):
+        return out
+    i = np.r_[tri[:, 0], tri[:, 1], tri[:, 2], tri[:, 1], tri[:, 2], tri[:, 0]]
+    j = np.r_[tri[:, 1], tri[:, 2], tri[:, 0], tri[:, 0], tri[:, 1], tri[:, 2]]
+    adj = coo_matrix((np.ones(len(i)), (i, j)), shape=(len(out), len(out))).tocsr()
+    adj.data[:] = 1.0  # an edge shared by two triangles counts once
+    deg = np.asarray(adj.sum(axis=1)).ravel()
+    on_mesh = deg > 0
+    for _ in range(steps):
+        mean = np.divide(adj @ out, deg, out=out.copy(), where=on_mesh)
+        out = 0.5 * (out + mean)
+    return out
+
+
+def composite(verbal: np.ndarray, emotional: np.ndarray, importance: np.ndarray,
+              band: tuple[float, float] = (0.25, 0.75), softness: float = 0.0) -> np.ndarray:
     """The displacement of an emotional and a verbal key-model composited.
 
-    Where ``importance >= 0.5`` the verbal displacement is kept whole and the emotional
-    one adds only its component perpendicular to it; elsewhere the emotional one is kept
-    and the verbal one adds its perpendicular component. A vertex one of them leaves
-    still takes the other's displacement.
+    Two candidates per vertex, as in Pyun et al.: the verbal displacement kept whole plus
+    the emotional one's component perpendicular to it, and the emotional one kept whole
+    plus the verbal one's perpendicular component. Where the importance is at least
+    ``band[1]`` the composite is the first (clearly verbal), at most ``band[0]`` the second
+    (clearly emotional), and between them a blend of the two by a smooth step of the
+    importance (3t² − 2t³, t rising from 0 to 1 across the band). A vertex one of them
+    leaves still takes the other's displacement.
+
+    Two departures from the paper, which switches at importance 0.5 and removes the whole
+    component along the kept displacement:
+
+    - where the displacements point against each other (a rounded vowel holding the lips
+      while an expression drops the jaw) each candidate is about its kept displacement
+      alone, so a switch from one vertex to the next opens a step in the skin: the lips
+      stay put while the skin next to them drops. The blend over a band of importance
+      (with the importance itself spread over the mesh, :func:`smooth_importance`) makes
+      that step a slope;
+    - the component of the other along the kept displacement k is removed by the factor
+      |k|² / (|k|² + ``softness``²) rather than wholly: a vertex the kept key-model barely
+      moves would otherwise cancel up to all of the other's motion along a direction set
+      by that tiny motion, which changes from vertex to vertex and tears the skin inside a
+      region too. Where |k| is well above ``softness`` the rule is the paper's.
 
     Parameters
     ----------
     verbal, emotional : (V, 3) float
         Displacements, metres.
     importance : (V,) float
-        Verbal importance (:func:`vertex_importance`).
+        Verbal importance (:func:`vertex_importance`, :func:`smooth_importance`).
+    band : (float, float)
+        Importance below which the composite is the emotional candidate and above which
+        it is the verbal one; ``(0.5, 0.5)`` is the paper's hard switch.
+    softness : float
+        Length in the displacements' unit (metres) below which a kept displacement stops
+        cancelling the other's along it; 0 is the paper's projection.
 
     Returns
     -------
     (V, 3) float
+
+    References
+    ----------
+    .. [1] H. Pyun et al., "An example-based approach for facial expression cloning",
+       SCA 2003, section 3 and appendix.
 
     Examples
     --------
@@ -340,18 +417,40 @@ def composite(verbal: np.ndarray, emotional: np.ndarray, importance: np.ndarray)
     """
     verbal = np.asarray(verbal, dtype=np.float64)
     emotional = np.asarray(emotional, dtype=np.float64)
-    keep_verbal = (np.asarray(importance) >= 0.5)[:, None]
-    kept = np.where(keep_verbal, verbal, emotional)
-    other = np.where(keep_verbal, emotional, verbal)
-    nn = (kept * kept).sum(axis=1, keepdims=True)
+    lo, hi = (float(b) for b in band)
+    if softness < 0:
+        raise InputError(f"the compositing softness must be at least 0, got {softness}")
+    if not 0 <= lo <= hi <= 1:
+        raise InputError(f"the compositing band must satisfy 0 <= low <= high <= 1, got {band}")
+    imp = np.asarray(importance, dtype=np.float64)
+    if hi > lo:
+        t = np.clip((imp - lo) / (hi - lo), 0.0, 1.0)
+        w = (t * t * (3.0 - 2.0 * t))[:, None]
+    else:
+        w = (imp >= hi).astype(np.float64)[:, None]
+    return w * _keep(verbal, emotional, softness) + (1.0 - w) * _keep(emotional, verbal, softness)
+
+
+def _keep(kept: np.ndarray, other: np.ndarray, softness: float = 0.0) -> np.ndarray:
+    """``kept`` plus the component of ``other`` perpendicular to it, per row; with a
+    ``softness`` (metres) the component along it is removed only by |kept|² / (|kept|² +
+    softness²), so that a barely moving kept vertex does not cancel the other's motion."""
+    nn = (kept * kept).sum(axis=1, keepdims=True) + softness ** 2
     along = np.divide((other * kept).sum(axis=1, keepdims=True), nn, out=np.zeros_like(nn), where=nn > 0)
     return kept + other - along * kept
 
 
 def composite_key_models(keys: KeyModels, verbal: Iterable[str] = VERBAL, emotional: Iterable[str] = EMOTIONAL,
                          radius_verbal: float | None = None, radius_emotional: float | None = None,
-                         s1: float = 0.5, s2: float = 0.3) -> tuple[KeyModels, np.ndarray]:
+                         s1: float = 0.5, s2: float = 0.3, smoothing_steps: int = 20,
+                         band: tuple[float, float] = (0.25, 0.75),
+                         softness: float | None = None) -> tuple[KeyModels, np.ndarray]:
     """The pure key-models and one composite per emotional × verbal pair.
+
+    The importance (:func:`vertex_importance`) is diffused along each of the head's parts'
+    edges (:func:`smooth_importance`, when the key-models have a head) and the composites
+    blend their verbal and emotional candidates across ``band`` with a soft projection
+    (:func:`composite`).
 
     Parameters
     ----------
@@ -364,6 +463,14 @@ def composite_key_models(keys: KeyModels, verbal: Iterable[str] = VERBAL, emotio
         of its eye separation ES0.
     s1, s2 : float
         Thresholds of :func:`vertex_importance`.
+    smoothing_steps : int
+        Diffusion steps of :func:`smooth_importance` (0: the importance as computed).
+    band : (float, float)
+        Importance band of :func:`composite`.
+    softness : float, optional
+        Softness of :func:`composite` in metres; by default 5 % of the head's mouth width
+        MW0 (about 2.5 mm on the generic head). ``smoothing_steps=0, band=(0.5, 0.5),
+        softness=0`` is the paper's rule.
 
     Returns
     -------
@@ -371,7 +478,7 @@ def composite_key_models(keys: KeyModels, verbal: Iterable[str] = VERBAL, emotio
         The verbal, then the emotional key-models, then the composites named
         ``emotional+verbal`` (:func:`combined_name`), emotion by emotion.
     importance : (V,) float
-        The verbal importance used.
+        The verbal importance used (smoothed).
     """
     verbal, emotional = list(verbal), list(emotional)
     if not verbal or not emotional:
@@ -382,10 +489,19 @@ def composite_key_models(keys: KeyModels, verbal: Iterable[str] = VERBAL, emotio
         fapu = keys.head.fapu
         radius_verbal = 0.25 * fapu.MW0 if radius_verbal is None else radius_verbal
         radius_emotional = 0.25 * fapu.ES0 if radius_emotional is None else radius_emotional
+    if softness is None:
+        if keys.head is None:
+            raise InputError("give the compositing softness (metres): the key-models have no head to measure")
+        softness = 0.05 * keys.head.fapu.MW0
     dv = keys.select(verbal).displacements
     de = keys.select(emotional).displacements
     importance = vertex_importance(keys.neutral, dv, de, radius_verbal, radius_emotional, s1, s2)
+    if keys.head is not None and smoothing_steps:
+        offsets = _offsets(keys.head)
+        triangles = np.concatenate([p.triangles + offsets[name] for name, p in keys.head.parts.items()])
+        importance = smooth_importance(importance, triangles, smoothing_steps)
     names = verbal + emotional + [combined_name(e, v) for e in emotional for v in verbal]
-    combined = [composite(dv[j], de[i], importance) for i in range(len(emotional)) for j in range(len(verbal))]
+    combined = [composite(dv[j], de[i], importance, band, softness)
+                for i in range(len(emotional)) for j in range(len(verbal))]
     disp = np.concatenate([dv, de, np.array(combined).reshape(-1, *keys.neutral.shape)])
     return KeyModels(keys.neutral, names, disp, keys.head), importance

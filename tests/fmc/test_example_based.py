@@ -12,8 +12,8 @@ from typer.testing import CliRunner
 
 from fmc.example_based import (FEATURE_POINTS, VERBAL, CardinalBasis, KeyModels, Parameterisation,
                                Retargeter, combined_name, composite, composite_key_models, cubic_bspline,
-                               key_models_from_shapes, load_feature_points, read_animation, target_key_models,
-                               vertex_importance, write_retargeted)
+                               key_models_from_shapes, load_feature_points, read_animation, smooth_importance,
+                               target_key_models, vertex_importance, write_retargeted)
 from mpeg4 import InputError
 from mpeg4.generic_head import load_generic_head
 
@@ -93,12 +93,73 @@ def test_cardinal_basis_interpolates_and_reproduces_affine_functions():
 
 
 def test_composite_keeps_one_displacement_and_the_perpendicular_part_of_the_other():
-    v = np.array([[0.0, -1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 0.0]])
-    e = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 2.0, 0.0]])
-    c = composite(v, e, np.array([1.0, 0.0, 1.0]))
+    v = np.array([[0.0, -1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 0.0], [0.0, -1.0, 0.0]])
+    e = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 2.0, 0.0], [1.0, 1.0, 0.0]])
+    c = composite(v, e, np.array([1.0, 0.0, 1.0, 0.5]))
     assert np.allclose(c[0], [1.0, -1.0, 0.0])  # verbal whole, emotional's x only
     assert np.allclose(c[1], [1.5, 0.5, 0.0])  # emotional whole, verbal's part across it
     assert np.allclose(c[2], [0.0, 2.0, 0.0])  # the verbal leaves it still: the emotional's
+    assert np.allclose(c[3], (c[0] + c[1]) / 2)  # mid-band: half of each candidate
+    hard = composite(v, e, np.array([1.0, 0.0, 1.0, 0.5]), band=(0.5, 0.5))
+    assert np.allclose(hard[3], c[0])  # the paper's switch: 0.5 is verbal
+    w = composite(v[:1], e[:1], np.array([0.6]))[0]  # t = 0.7: smooth step 0.784
+    assert np.allclose(w, 0.784 * c[0] + 0.216 * c[1])
+    # softness s: of the other's component along k, |k|^2 / (|k|^2 + s^2) is removed
+    soft = composite(np.array([[0.0, -1.0, 0.0]]), np.array([[0.0, 3.0, 0.0]]), np.array([1.0]), softness=1.0)
+    assert np.allclose(soft[0], [0.0, -1.0 + 3.0 * 0.5, 0.0])
+    with pytest.raises(InputError, match="band"):
+        composite(v, e, np.ones(4), band=(0.8, 0.2))
+    with pytest.raises(InputError, match="softness"):
+        composite(v, e, np.ones(4), softness=-1.0)
+
+
+def test_importance_is_smoothed_along_the_mesh_edges():
+    # a strip of 40 columns of 2 vertices (78 triangles), importance 1 on the left half
+    n = 40
+    tri = np.concatenate([[[2 * k, 2 * k + 1, 2 * k + 2], [2 * k + 1, 2 * k + 3, 2 * k + 2]] for k in range(n - 1)])
+    step = np.repeat((np.arange(n) < n // 2).astype(float), 2)
+    imp = np.r_[step, 0.7]  # and a vertex on no triangle
+    out = smooth_importance(imp, tri, steps=20)
+    col = out[:-1].reshape(n, 2).mean(axis=1)
+    assert out[-1] == 0.7 and np.array_equal(smooth_importance(imp, tri, steps=0), imp)
+    assert (np.diff(col) <= 1e-12).all() and 0 <= out.min() and out.max() <= 1  # monotone, in [0, 1]
+    assert col[0] > 0.99 and col[-1] < 0.01  # far from the step: unchanged
+    assert np.abs(np.diff(col)).max() < 0.2  # the jump of 1 is spread over the band
+    assert abs(col[n // 2 - 1] + col[n // 2] - 1) < 1e-9  # symmetric about the step
+    with pytest.raises(InputError, match="steps"):
+        smooth_importance(imp, tri, steps=-1)
+
+
+def _worst_edge_excess(keys):
+    """Largest skin-edge length of a composite over the longest the edge has in the neutral,
+    the verbal, the emotional key-model or their sum, over the 84 composites."""
+    sl = keys.part_slices()["skin"]
+    tri = keys.head.skin.triangles
+    e = np.unique(np.sort(np.r_[tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]], axis=1), axis=0)
+
+    def lengths(d):
+        x = keys.neutral[sl] + d[sl]
+        return np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1)
+
+    l0, worst = lengths(np.zeros_like(keys.neutral)), 0.0
+    for i, name in enumerate(keys.names[20:], start=20):
+        em, vb = name.split("+")
+        dv, de = keys.displacements[keys.index(vb)], keys.displacements[keys.index(em)]
+        ref = np.maximum.reduce([l0, lengths(dv), lengths(de), lengths(dv + de)])
+        worst = max(worst, float((lengths(keys.displacements[i]) / ref).max()))
+    return worst
+
+
+def test_composites_do_not_tear_the_skin(generic_keys):
+    keys = generic_keys[0]
+    # the paper's rule (hard switch at 0.5, full projection) stretches a skin edge to 9.7
+    # times its longest in any of the parts (expression_disgust+viseme_A): the lips stay
+    # while the skin next to them moves; blended over a smoothed band with a soft projection
+    # the worst is 2.5 (expression_surprise+viseme_f_v)
+    assert _worst_edge_excess(keys) < 3.0
+    paper = composite_key_models(key_models_from_shapes(keys.head), smoothing_steps=0, band=(0.5, 0.5),
+                                 softness=0.0)[0]
+    assert _worst_edge_excess(paper) > 9.0
 
 
 def test_importance_propagates_within_the_radius_and_combines():
@@ -119,18 +180,28 @@ def test_compositing_keeps_verbal_motion_where_speech_matters(generic_keys):
     keys, imp = generic_keys
     assert len(keys) == 14 + 6 + 84 and keys.names[:14] == list(VERBAL)
     head = keys.head
+    softness = 0.05 * head.fapu.MW0
     fp = {i: head.feature_points[i].vertices[0] for i in ("8.3", "8.1", "2.2", "2.1", "4.1", "4.3", "3.1")}
-    assert all(imp[fp[i]] >= 0.5 for i in ("8.3", "8.1", "2.2", "2.1"))  # mouth and chin speak
-    assert all(imp[fp[i]] < 0.5 for i in ("4.1", "4.3", "3.1"))  # brows and lids emote
-    for e, v in (("expression_joy", "viseme_A"), ("expression_anger", "viseme_p_b_m")):
+    assert all(imp[fp[i]] >= 0.75 for i in ("8.3", "8.1", "2.2", "2.1"))  # mouth and chin speak
+    assert all(imp[fp[i]] <= 0.25 for i in ("4.1", "4.3", "3.1"))  # brows and lids emote
+    for e, v in (("expression_joy", "viseme_A"), ("expression_anger", "viseme_U")):
         c = keys.displacements[keys.index(combined_name(e, v))]
         dv, de = keys.displacements[keys.index(v)], keys.displacements[keys.index(e)]
-        for kept, region in ((dv, imp >= 0.5), (de, imp < 0.5)):
-            moving = region & (np.linalg.norm(kept, axis=1) > 1e-5)
-            u = kept[moving] / np.linalg.norm(kept[moving], axis=1, keepdims=True)
-            along = (c[moving] * u).sum(axis=1)
-            assert np.abs(along - np.linalg.norm(kept[moving], axis=1)).max() < 1e-12
-            assert moving.sum() > 100
+        n = np.linalg.norm(dv, axis=1)
+        moving = (imp >= 0.75) & (n > 2 * softness)  # clearly verbal, moving well above the softness
+        u = dv[moving] / n[moving, None]
+        along, other = (c[moving] * u).sum(axis=1), (de[moving] * u).sum(axis=1)
+        # the viseme's motion kept; of the expression's along it at least 80 % removed
+        assert (np.abs(along - n[moving]) <= 0.2 * np.abs(other) + 1e-12).all()
+        assert moving.sum() > 100
+        # clearly emotional and clearly verbal vertices keep the paper's candidates exactly
+        # when the projection is not softened
+        hard = composite(dv, de, imp, softness=0.0)
+        for kept, region in ((dv, imp >= 0.75), (de, imp <= 0.25)):
+            mv = region & (np.linalg.norm(kept, axis=1) > 1e-5)
+            uk = kept[mv] / np.linalg.norm(kept[mv], axis=1, keepdims=True)
+            assert np.abs((hard[mv] * uk).sum(axis=1) - np.linalg.norm(kept[mv], axis=1)).max() < 1e-12
+            assert mv.sum() > 100
 
 
 def test_pca_drops_the_parameter_dimension_on_real_key_models(generic_keys):
