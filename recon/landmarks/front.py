@@ -153,6 +153,16 @@ def _yaw_asymmetry(lm: np.ndarray) -> float:
     return float((left - right) / max(left + right, 1e-9))
 
 
+def _largest_step(reach: np.ndarray, lo: int, hi: int, m: int, least: float) -> int | None:
+    """The row in [lo, hi) where ``reach`` (per row) grows the most from ``m`` rows above
+    to ``m`` rows below, or None when nowhere by ``least``."""
+    step = reach[lo + m:hi + m] - reach[lo - m:hi - m]
+    if not np.isfinite(step).any():
+        return None
+    k = int(np.nanargmax(step))
+    return lo + k if step[k] >= least else None
+
+
 def ear_from_outline(mask: np.ndarray, sign: float, centre_x: float, top_band: tuple[float, float],
                      lowest: float, ipd: float) -> dict | None:
     """An ear standing out of a front silhouette's outline, or None.
@@ -194,23 +204,15 @@ def ear_from_outline(mask: np.ndarray, sign: float, centre_x: float, top_band: t
     a, b = int(max(m, top_band[0])), int(min(h - 2 * m - 1, top_band[1]))
     if b <= a:
         return None
-    step_out = out[a + m:b + m] - out[a - m:b - m]
-    if not np.isfinite(step_out).any():
+    y_top = _largest_step(out, a, b, m, 0.05 * ipd)
+    if y_top is None:
         return None
-    k = int(np.nanargmax(step_out))
-    if step_out[k] < 0.05 * ipd:
-        return None
-    y_top = a + k
     lo, hi = int(y_top + 0.45 * ipd), int(min(h - m - 1, y_top + 1.5 * ipd, lowest))
     if hi <= lo:
         return None
-    step_in = out[lo - m:hi - m] - out[lo + m:hi + m]
-    if not np.isfinite(step_in).any():
+    y_bottom = _largest_step(-out, lo, hi, m, 0.04 * ipd)
+    if y_bottom is None:
         return None
-    k = int(np.nanargmax(step_in))
-    if step_in[k] < 0.04 * ipd:
-        return None
-    y_bottom = lo + k
     # The head's line: the outline just above the ear and just below the lobe.
     ya, yb = y_top - m, y_bottom + m
     xa, xb = out[ya], out[yb]

@@ -34,6 +34,18 @@ def _window(shape, centre, half_w: float, half_h: float) -> tuple[slice, slice]:
     return slice(y0, y1), slice(x0, x1)
 
 
+def _skin_window(lab: np.ndarray, mask: np.ndarray, centre, half_w: float, half_h: float):
+    """A window of the photo about ``centre``: its rows and columns (slices), colours, the
+    silhouette's pixels in it and their median colour (the skin's); None when the window
+    holds fewer than 20 of the silhouette's pixels."""
+    rows, cols = _window(lab.shape, centre, half_w, half_h)
+    win = lab[rows, cols]
+    inside = mask[rows, cols]
+    if inside.sum() < 20:
+        return None
+    return rows, cols, win, inside, np.median(win[inside], axis=0)
+
+
 def _components(flags: np.ndarray):
     from scipy import ndimage as ndi
 
@@ -64,12 +76,11 @@ def eye_white(lab: np.ndarray, mask: np.ndarray, centre: np.ndarray, ipd: float)
     """
     from scipy import ndimage as ndi
 
-    rows, cols = _window(lab.shape, centre, 0.4 * ipd, 0.2 * ipd)
-    win = lab[rows, cols]
-    inside = ndi.binary_erosion(mask, iterations=max(1, int(0.02 * ipd)))[rows, cols]
-    if inside.sum() < 20:
+    found = _skin_window(lab, ndi.binary_erosion(mask, iterations=max(1, int(0.02 * ipd))), centre,
+                         0.4 * ipd, 0.2 * ipd)
+    if found is None:
         return None
-    skin = np.median(win[inside], axis=0)
+    rows, cols, win, inside, skin = found
     chroma = np.hypot(win[..., 1], win[..., 2])
     skin_chroma = float(np.hypot(skin[1], skin[2]))
     white = inside & (win[..., 0] > skin[0] + 4.0) & (chroma < 0.6 * skin_chroma)
@@ -109,12 +120,10 @@ def lip_region(lab: np.ndarray, mask: np.ndarray, centre: np.ndarray, ipd: float
         ``corner``: the lips' rearmost pixel (x, y), the corner of the mouth; ``area``.
         None when no patch clearly redder than the skin around it touches the profile.
     """
-    rows, cols = _window(lab.shape, centre, 0.45 * ipd, 0.25 * ipd)
-    win = lab[rows, cols]
-    inside = mask[rows, cols]
-    if inside.sum() < 20:
+    found = _skin_window(lab, mask, centre, 0.45 * ipd, 0.25 * ipd)
+    if found is None:
         return None
-    skin = np.median(win[inside], axis=0)
+    rows, cols, win, inside, skin = found
     red = inside & (win[..., 1] > skin[1] + 8.0)
     lab_c, n = _components(red)
     if n == 0:
