@@ -24,6 +24,8 @@ from skimage.measure import points_in_poly
 from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.head import Head
 
+from .contours import edge_graph
+
 __all__ = ["MOUTH_REGION_FPS", "region_scales", "normalisation", "mouth_scale", "face_scale", "LIP_FPS",
            "UPPER_LIP_FPS", "LOWER_LIP_FPS", "CORNER_FPS", "lip_sides_on_mesh", "lip_classes", "lip_vertex_classes"]
 
@@ -113,7 +115,6 @@ def lip_sides_on_mesh(head: Head, reach: float) -> np.ndarray:
     Along the mesh the two lips meet only at the corners (and deep in the mouth), so a
     lip's inner surface, which curls back behind the other lip, stays with its own lip.
     """
-    from scipy import sparse
     from scipy.sparse.csgraph import dijkstra
 
     skin = head.skin
@@ -127,10 +128,7 @@ def lip_sides_on_mesh(head: Head, reach: float) -> np.ndarray:
     out = np.zeros(skin.n_vertices)
     if not seeds:
         return out
-    t = skin.triangles
-    e = np.unique(np.sort(np.r_[t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]], axis=1), axis=0)
-    length = np.linalg.norm(skin.vertices[e[:, 0]] - skin.vertices[e[:, 1]], axis=1)
-    graph = sparse.coo_matrix((length, (e[:, 0], e[:, 1])), shape=(skin.n_vertices,) * 2).tocsr()
+    graph = edge_graph(skin.vertices, skin.triangles)
     dist, _, source = dijkstra(graph, directed=False, indices=seeds, min_only=True, return_predecessors=True,
                                limit=reach)
     sign_of = dict(zip(seeds, side))
