@@ -2,7 +2,7 @@
 2-worker Dask LocalCluster, in one run on the same people; each worker's peak memory and
 how it moves from its first head to its last (a flat peak: no growth per head).
 
-The people are synthetic ICT FaceKit identities (``recon.synthetic.synthetic_pair``, seeds
+The people are synthetic ICT FaceKit identities (``recon.evaluate.synthetic.synthetic_pair``, seeds
 0…N-1) photographed at ``--size``, with their true feature points; without the ICT data,
 the embedded example at N photo sizes. Each configuration builds all of them into a fresh
 folder; the figures include starting the workers (a batch pays for that too).
@@ -29,7 +29,7 @@ def synthetic_people(folder: Path, n: int, size: tuple[int, int], texture_size: 
     from PIL import Image
 
     from mpeg4.io import write_fdp_json
-    from recon.synthetic import default_ict_path, synthetic_pair
+    from recon.evaluate.synthetic import default_ict_path, synthetic_pair
 
     if not default_ict_path().exists():
         return example_people(folder, n, size), "the embedded example at several photo sizes (no ICT data)"

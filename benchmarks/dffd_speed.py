@@ -28,8 +28,8 @@ def main() -> int:
     from scipy.interpolate import RBFInterpolator
 
     from mpeg4.generic_head import load_generic_head
-    from recon.deform import bounding_controls
-    from recon.sibson import NaturalNeighbours
+    from recon.shape.deform import bounding_controls
+    from recon.shape.sibson import NaturalNeighbours
 
     head = load_generic_head()
     verts = np.concatenate([p.vertices for p in head.parts.values()])

@@ -1,6 +1,6 @@
 """Accuracy of the automatic feature points (recon.landmarks) against known truth.
 
-Synthetic front and side photos of ICT FaceKit identities (``recon.synthetic``, seeds from
+Synthetic front and side photos of ICT FaceKit identities (``recon.evaluate.synthetic``, seeds from
 0; the landmark tables were fitted to seeds 1000-1019) give every feature point's true
 pixel. Each automatic point's error is measured in % of the true distance between the
 pupils, per feature point group, front and side separately, for the points the face mesh
@@ -82,7 +82,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
 
     from recon.landmarks import detect_front, detect_images, mediapipe_available
-    from recon.synthetic import default_ict_path, synthetic_pair
+    from recon.evaluate.synthetic import default_ict_path, synthetic_pair
 
     if not mediapipe_available():
         print("skipped: mediapipe is not installed (bash install.sh)")

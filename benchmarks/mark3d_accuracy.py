@@ -1,17 +1,17 @@
-"""Feature points on head meshes from elsewhere: ``recon.mark3d`` against ICT FaceKit truth.
+"""Feature points on head meshes from elsewhere: ``recon.mark`` against ICT FaceKit truth.
 
-Each identity (``recon.synthetic.remeshed_identity``: fixed seeds) is decimated per part by
+Each identity (``recon.evaluate.synthetic.remeshed_identity``: fixed seeds) is decimated per part by
 quadric edge collapse to 25-55 % of its triangles with its vertex order shuffled (so no
 vertex id or position survives), tilted by up to 10 degrees about a random axis, written
 in a random unit (m, cm, mm) and axis convention (y up / z forward, z up / -y forward,
 z up / +y forward, y up / -z forward), as a merged PLY, an OBJ of anonymous groups or a
-GLB of anonymous meshes in turn. :func:`recon.mark3d.mark` finds its feature points; each
+GLB of anonymous meshes in turn. :func:`recon.mark.mark` finds its feature points; each
 is compared with the identity's true point (on the original surface), in the identity's
 own metric (the file's unit undone), so the error is what a user would see on the mesh.
 
 The 2D detector is :func:`recon.landmarks.detect` when installed (the photo annotation's;
 the targets apply to it: median <= 2 mm on the landmark-model points, <= 4 mm on the
-rest), else the perfect 2D detector of :mod:`recon.synthetic` (the true points seen by the
+rest), else the perfect 2D detector of :mod:`recon.evaluate.synthetic` (the true points seen by the
 renders' cameras), which measures everything after detection. ``--detector`` chooses.
 
 ``by_rule`` gives the median error and confidence of the points each rule placed
@@ -60,8 +60,8 @@ def main(argv=None) -> int:
         return 0
     from mpeg4 import FEATURE_POINTS
     from mpeg4.errors import InputError
-    from recon.mark3d import landmark_detector, mark
-    from recon.synthetic import load_ict, perfect_detector, remeshed_identity
+    from recon.mark import landmark_detector, mark
+    from recon.evaluate.synthetic import load_ict, perfect_detector, remeshed_identity
 
     have = importlib.util.find_spec("recon.landmarks") is not None
     which = "landmarks" if args.detector == "landmarks" or (args.detector == "auto" and have) else "perfect"

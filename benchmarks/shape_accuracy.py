@@ -3,7 +3,7 @@
 For each identity (``neutral + sum z_i identity_i``, z ~ N(0, 1), fixed seeds) its feature
 points (the generic head's bindings evaluated on the identity's vertices) are projected
 into a front and a side camera 1024 px high, orthographic or a 50 mm-equivalent pinhole,
-with pixel noise sigma; :func:`recon.calibrate.calibrate` recovers 3D points (given the true
+with pixel noise sigma; :func:`recon.shape.calibrate.calibrate` recovers 3D points (given the true
 interpupillary distance) and the generic head is fitted to them three ways: similarity
 only (baseline), thin-plate RBF, and the exact Sibson DFFD. The per-vertex error against
 the identity is measured after removing the free translation (the photos fix no origin),
@@ -79,8 +79,8 @@ def main(argv=None) -> int:
         print(f"skipped: {NPZ} is absent (the ICT FaceKit test data)")
         return 0
     from mpeg4.generic_head import load_generic_head
-    from recon.calibrate import calibrate
-    from recon.deform import deform_head, fit_similarity
+    from recon.shape.calibrate import calibrate
+    from recon.shape.deform import deform_head, fit_similarity
 
     data = np.load(NPZ)
     generic = load_generic_head()

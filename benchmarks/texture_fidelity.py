@@ -1,30 +1,30 @@
 """Texture fidelity: re-projection PSNR/SSIM, seam smoothness and albedo error on ICT identities.
 
-For each identity (seeds 1000+k; ``recon.synthetic``: painted skin, 1024x1280 photos
+For each identity (seeds 1000+k; ``recon.evaluate.synthetic``: painted skin, 1024x1280 photos
 through a 100 mm-equivalent lens at 1.8 m, lit by a key light that moves with the camera
 plus ambient) the head is built twice from the two photos and the feature points' true
 pixels (``recon.build.build_head``, 2048² texture): keeping the photos' light in the
 texture (``keep_lighting=True``, the *lit* texture) and with each photo's light taken out
-(the default, the *albedo* texture, ``recon.delight``).
+(the default, the *albedo* texture, ``recon.texture.delight``).
 
 * Re-projection. The lit texture is rendered unlit with the front photo's fitted camera and
   compared with the photo where the skin is seen inside the front region
-  (``recon.fidelity.reprojection``); then with the side photo's fitted camera against the
+  (``recon.evaluate.fidelity.reprojection``); then with the side photo's fitted camera against the
   side photo, over all the skin it sees and over the skin the texture takes from the side
   photo, with the mean colour difference (render minus photo, grey levels) over the cheek
   in front of the ear, which the texture takes from the front photo
-  (``recon.fidelity.side_reprojection``). The albedo texture is compared the same way but
-  rendered *relit with the photo's light* (``recon.synthetic.PHOTO_LIGHT``, ambient
+  (``recon.evaluate.fidelity.side_reprojection``). The albedo texture is compared the same way but
+  rendered *relit with the photo's light* (``recon.evaluate.synthetic.PHOTO_LIGHT``, ambient
   ``PHOTO_AMBIENT``; ``albedo_*`` lines): rendered unlit it could not match a lit photo.
   The de-lighting itself never sees that light.
 * Albedo error. Both textures against the painted colour at every skin vertex
-  (``recon.synthetic.skin_albedo``, skin-tone vertices only: no hair, brows, lips, lashes):
+  (``recon.evaluate.synthetic.skin_albedo``, skin-tone vertices only: no hair, brows, lips, lashes):
   mean absolute colour error per region (``face``: all; ``front``; ``cheek``: front-region
   skin facing the side camera, in front of the ear; ``side``: the side photo's layer), the
   cheek's brightness step against the front, and the error of the face's left-right
-  difference (``recon.fidelity.albedo_error``).
+  difference (``recon.evaluate.fidelity.albedo_error``).
 * Seams: each texture's layers blended three ways, mean gradient magnitude in an 8-pixel
-  band across the layers' borders (``recon.fidelity.seam_smoothness``; ``albedo_seam_*``
+  band across the layers' borders (``recon.evaluate.fidelity.seam_smoothness``; ``albedo_seam_*``
   for the albedo texture's).
 
 The embedded example (ICT identity 5, photographed the same way) comes first.
@@ -51,8 +51,8 @@ _REGIONS = ("face", "front", "cheek", "side")
 def _measure(pair, masks, person, data, ipd, focal, size):
     """Figures of the lit and the albedo texture of one photo pair."""
     from recon.build import build_head
-    from recon.fidelity import albedo_error, reprojection, seam_smoothness, side_reprojection
-    from recon.synthetic import PHOTO_AMBIENT, PHOTO_LIGHT, skin_albedo
+    from recon.evaluate.fidelity import albedo_error, reprojection, seam_smoothness, side_reprojection
+    from recon.evaluate.synthetic import PHOTO_AMBIENT, PHOTO_LIGHT, skin_albedo
 
     out = {}
     fm, sm = (None, None) if masks is None else (masks["front"], masks["side"])
@@ -99,7 +99,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     from recon.build import PhotoPair, load_pair
     from recon.example import EXAMPLE_FDP, example_camera
-    from recon.synthetic import default_ict_path, load_ict, make_person, synthetic_pair
+    from recon.evaluate.synthetic import default_ict_path, load_ict, make_person, synthetic_pair
 
     have_ict = default_ict_path().exists()
     data = load_ict() if have_ict else None

@@ -5,7 +5,7 @@ On the embedded example (its photos and feature points, the head fitted to them)
 skin vertex, the side photo warped along the feature lines (and flipped), the three layers
 blended — at two texture sizes with OpenCV's multi-band blender, keeping the photos' light
 (``delight=False``: the target's measure), then with the photos de-lit first (the default,
-:mod:`recon.delight`, which costs the same at any texture size), and the blend alone with
+:mod:`recon.texture.delight`, which costs the same at any texture size), and the blend alone with
 the scikit-image pyramids at the larger size, in one run. Best of ``--repeat`` runs.
 
 Run: ``python3 benchmarks/texture_speed.py [--repeat 3]``
@@ -28,10 +28,10 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args(argv)
     from recon.build import load_pair
-    from recon.cameras import fit_camera
+    from recon.texture.cameras import fit_camera
     from recon.example import EXAMPLE_FDP, example_camera
-    from recon.fit import fit_head
-    from recon.blend import blend_multiband
+    from recon.shape.fit import fit_head
+    from recon.texture.blend import blend_multiband
     from recon.texture import texture_skin
 
     cam = example_camera()

@@ -72,7 +72,7 @@ def mark(mesh: Path = typer.Argument(..., help="Head mesh (.glb, .gltf, .obj or 
          passes: int = typer.Option(2, help="1: points from the first renders; 2: again in the frame they give.")
          ) -> None:
     """Find the MPEG-4 feature points of a head mesh (renders, 2D landmarks, ray casting): MESH.fdp.json."""
-    from recon.mark3d import mark_file
+    from recon.mark import mark_file
 
     path, result = mark_file(mesh, out, unit=unit, up=up, forward=forward, passes=passes, progress=_say)
     for note in result.notes:

@@ -14,14 +14,14 @@ def target_head(path, detect=None, progress=None) -> tuple[Head, list[str]]:
 
     The head as :func:`mpeg4.io.load_head` reads it (a GLB of this project, or a mesh with
     its ``<stem>.fdp.json`` beside it); a head without the points cloning needs is marked
-    first by :func:`recon.mark3d.mark` (nothing is written).
+    first by :func:`recon.mark.mark` (nothing is written).
 
     Parameters
     ----------
     path : path
         GLB, glTF, OBJ or PLY.
     detect : callable, optional
-        Passed to :func:`recon.mark3d.mark`.
+        Passed to :func:`recon.mark.mark`.
     progress : callable, optional
 
     Returns
@@ -41,7 +41,7 @@ def target_head(path, detect=None, progress=None) -> tuple[Head, list[str]]:
             return head, [f"the feature points of {name} were detected automatically and not reviewed "
                           f"(check them: recon annotate {name})"]
         return head, []
-    from recon.mark3d import mark
+    from recon.mark import mark
 
     result = mark(path, detect=detect, progress=progress)
     warnings = [f"{name} has no feature points: they were detected automatically and are unreviewed "

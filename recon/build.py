@@ -1,10 +1,10 @@
 """``recon build``: shape, texture and export of one head from two annotated photos.
 
 :func:`build_head` is the computation: the generic head fitted to the feature points
-(:func:`recon.fit.fit_head`), the photos' cameras recovered from them
-(:func:`recon.cameras.fit_camera`), the skin textured from both photos
+(:func:`recon.shape.fit.fit_head`), the photos' cameras recovered from them
+(:func:`recon.texture.cameras.fit_camera`), the skin textured from both photos
 (:func:`recon.texture.texture_skin`), the other parts given textures of their own, and
-optionally the whole re-packed into a clean atlas (:func:`recon.atlas.repack`). Shape and
+optionally the whole re-packed into a clean atlas (:func:`recon.texture.atlas.repack`). Shape and
 texture may come from different photo pairs (Lee et al. 2.3.1): the texture is laid out on
 the head fitted to its own pair, and carried to the shape's head, which has the same
 topology.
@@ -33,9 +33,9 @@ import numpy as np
 from mpeg4.errors import InputError
 from mpeg4.head import Head
 
-from .calibrate import DEFAULT_IPD_MM
-from .cameras import FittedCamera, fit_camera
-from .fit import attach_photo_sizes, fit_head, require_views
+from .shape.calibrate import DEFAULT_IPD_MM
+from .texture.cameras import FittedCamera, fit_camera
+from .shape.fit import attach_photo_sizes, fit_head, require_views
 from .photos import check_photo, photos_focal_px, read_photo
 
 __all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "run_build", "bundle_fdp", "build_time",
@@ -171,18 +171,18 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     texture : PhotoPair, optional
         Those the texture comes from (the same pair by default).
     ipd_mm, focal_px, method
-        See :func:`recon.fit.fit_head` (they apply to both pairs).
+        See :func:`recon.shape.fit.fit_head` (they apply to both pairs).
     texture_size : int
         Side of the square skin texture, pixels.
     atlas : bool
-        Re-pack the texture into a non-overlapping atlas (:func:`recon.atlas.repack`).
+        Re-pack the texture into a non-overlapping atlas (:func:`recon.texture.atlas.repack`).
     blend : {"opencv", "skimage"}
         Implementation of the multiresolution spline.
     generic : Head, optional
         The head to deform (the shipped generic head by default).
     keep_lighting : bool
         Keep the photos' light in the texture. By default it is taken out of each photo
-        (:mod:`recon.delight`) and the texture is the skin's albedo, which renderers (the
+        (:mod:`recon.texture.delight`) and the texture is the skin's albedo, which renderers (the
         previews, game engines) light themselves; a lit texture rendered with a light is
         shaded twice.
     progress : callable, optional
@@ -221,7 +221,7 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     out = textured_head(head, skin, tex_pair.front)
     times["texture"] = time.perf_counter() - t1
     if atlas:
-        from .atlas import repack
+        from .texture.atlas import repack
 
         t2 = time.perf_counter()
         say("re-packing the texture into an atlas (xatlas)")

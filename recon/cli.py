@@ -45,7 +45,7 @@ def fit(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
         method: str = typer.Option("dffd", "--method", help="dffd (exact Sibson) or rbf (thin-plate spline).")
         ) -> None:
     """Fit the generic head to two annotated photos: head.glb, head.fdp.json, preview.png."""
-    from .fit import run_fit
+    from .shape.fit import run_fit
 
     paths = run_fit(front, side, fdp, out, ipd_mm=ipd, focal_px=focal, method=method, progress=_say)
     for kind, path in paths.items():

@@ -4,7 +4,7 @@ Front table: every feature point a front photo shows that the face mesh covers (
 2–5, 8, 9: not the ears, hairline and skull, which come from the silhouette) is written as
 an affine combination of three face-mesh landmarks' pixels. The three are chosen among the
 eight landmarks nearest to the point, and their weights fitted by least squares (weights
-summing to one), on front photos of synthetic ICT FaceKit identities (``recon.synthetic``,
+summing to one), on front photos of synthetic ICT FaceKit identities (``recon.evaluate.synthetic``,
 seeds 1000–1019; the benchmark uses 0–19); the triple with the smallest
 leave-one-identity-out error wins. The pupils (3.5, 3.6) are the iris centres themselves.
 
@@ -93,7 +93,7 @@ def side_points() -> list[str]:
 
 def _pair(seed: int, cache: Path | None):
     """Front and side photo with their true pixels, rendered or from the cache."""
-    from recon.synthetic import synthetic_pair
+    from recon.evaluate.synthetic import synthetic_pair
 
     f = None if cache is None else cache / f"pair_{seed}.npz"
     if f is not None and f.exists():

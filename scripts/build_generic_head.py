@@ -41,7 +41,7 @@ sys.path.insert(0, str(ROOT))
 
 from mpeg4.catalogue import FEATURE_POINTS, FP_IDS  # noqa: E402
 from mpeg4.head import FeaturePointBinding, Head, Part, SparseDisplacement  # noqa: E402
-from recon.materials import eye_texture, eye_uv  # noqa: E402
+from recon.texture.materials import eye_texture, eye_uv  # noqa: E402
 
 DEFAULT_NPZ = ROOT.parent / "shared" / "data" / "ict_facekit" / "ict_facekit.npz"
 DEFAULT_OUT = ROOT / "data" / "generic_head" / "generic_head.glb"

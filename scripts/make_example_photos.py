@@ -2,7 +2,7 @@
 feature points' true pixels in both.
 
 The person is ICT FaceKit identity seed ``SEED`` (standard-normal identity modes, not the
-model mean) with the skin painted by :mod:`recon.synthetic`, photographed through a
+model mean) with the skin painted by :mod:`recon.evaluate.synthetic`, photographed through a
 100 mm-equivalent lens from 1.8 m. Writes ``data/example/front.jpg``, ``side.jpg`` and
 ``example.fdp.json`` (views with their images, sizes and points; the focal length in
 pixels and the true interpupillary distance in ``metadata.synthetic``). The photos' EXIF
@@ -23,7 +23,7 @@ sys.path.insert(0, str(ROOT))
 
 from mpeg4.io.atomic import atomic_write  # noqa: E402
 from mpeg4.io.fdp_json import write_fdp_json  # noqa: E402
-from recon.synthetic import default_ict_path, synthetic_pair  # noqa: E402
+from recon.evaluate.synthetic import default_ict_path, synthetic_pair  # noqa: E402
 
 SEED = 5
 SIZE = (1024, 1280)  # width, height
@@ -56,7 +56,7 @@ def make_example(out: Path, npz: Path | None = None) -> dict[str, Path]:
     """Render the example into ``out`` and return the written paths."""
     from PIL import Image
 
-    from recon.synthetic import load_ict
+    from recon.evaluate.synthetic import load_ict
 
     pair = synthetic_pair(SEED, size=SIZE, focal_mm=FOCAL_MM, distance=DISTANCE, data=load_ict(npz),
                           texture_size=2048)
@@ -69,7 +69,7 @@ def make_example(out: Path, npz: Path | None = None) -> dict[str, Path]:
                                                       exif=exif)
         pair.fdp.views[name].image = paths[name].name
     pair.fdp.metadata["synthetic"].update(
-        source="ICT-FaceKit identity (ICT Face Model Light, MIT), painted by recon.synthetic",
+        source="ICT-FaceKit identity (ICT Face Model Light, MIT), painted by recon.evaluate.synthetic",
         focal_mm=FOCAL_MM, distance_m=DISTANCE)
     write_fdp_json(paths["fdp"], pair.fdp)
     return paths

@@ -107,7 +107,7 @@ def run(paths: list[Path], check: bool = False, say=print) -> int:
     from nbclient.exceptions import CellExecutionError
 
     from mpeg4.io.atomic import atomic_write
-    from recon.synthetic import default_ict_path
+    from recon.evaluate.synthetic import default_ict_path
 
     if not default_ict_path().exists():
         print(f"make_gallery: {default_ict_path()}: the ICT FaceKit data is missing, and the shape-error figure "

@@ -32,7 +32,7 @@ def validate_gltf():
 def landmark_detector_available() -> bool:
     """Whether ``fmc mark`` has its 2D detector here (recon.landmarks with mediapipe)."""
     from mpeg4.errors import InputError
-    from recon.mark3d import landmark_detector
+    from recon.mark import landmark_detector
 
     try:
         landmark_detector()
@@ -51,9 +51,9 @@ def ict_npz():
 
 @pytest.fixture(scope="session")
 def remeshed(ict_npz, tmp_path_factory):
-    """A function (seed, fmt) -> recon.synthetic.MeshFile, each made once per test run."""
+    """A function (seed, fmt) -> recon.evaluate.synthetic.MeshFile, each made once per test run."""
     pytest.importorskip("fast_simplification", reason="fast-simplification is not installed (pip install '.[test]')")
-    from recon.synthetic import load_ict, remeshed_identity
+    from recon.evaluate.synthetic import load_ict, remeshed_identity
 
     cache = {}
 

@@ -64,7 +64,7 @@ def test_the_scan_sees_lazy_imports(tmp_path):
     (tmp_path / "recon" / "b.py").write_text("import importlib\n\nimportlib.import_module('chain.cli')\n")
     (tmp_path / "recon" / "__main__.py").write_text("from chain.cli import recon_main\n")
     (tmp_path / "fmc").mkdir()
-    (tmp_path / "fmc" / "c.py").write_text("from . import d\nimport recon.mark3d as m\n")
+    (tmp_path / "fmc" / "c.py").write_text("from . import d\nimport recon.mark as m\n")
     assert crossings(tmp_path) == ["recon/a.py:2: imports fmc", "recon/b.py:3: imports chain",
                                    "fmc/c.py:2: imports recon"]
 

@@ -8,7 +8,7 @@ not this session's own work is first copied to ``F.fdp.json.bak``, and a file ch
 disk since the session read or wrote it is not overwritten unless the user says so.
 
 Where the points start, in this order: the annotation file when it exists; the head's own
-points (a GLB of this project); :func:`recon.mark3d.mark` with the 2D detector when it is
+points (a GLB of this project); :func:`recon.mark.mark` with the 2D detector when it is
 installed; else the generic head's points, scaled to the mesh and snapped to its surface
 (confidence 0, listed for checking).
 """
@@ -57,17 +57,17 @@ class MeshSession:
         ``<mesh>.fdp.json`` beside the mesh when None (where :func:`mpeg4.io.load_head`
         finds it).
     detect : callable or bool
-        ``detect(views) -> FdpFile`` for :func:`recon.mark3d.mark`; True uses
-        :func:`recon.mark3d.landmark_detector` when installed; False skips detection.
+        ``detect(views) -> FdpFile`` for :func:`recon.mark.mark`; True uses
+        :func:`recon.mark.landmark_detector` when installed; False skips detection.
     unit, up, forward : str, optional
-        For :func:`recon.mark3d.estimate_frame` when the points do not come from a file.
+        For :func:`recon.mark.estimate_frame` when the points do not come from a file.
     """
 
     mode = "mesh"
 
     def __init__(self, mesh, fdp_path=None, detect=True, unit=None, up=None, forward=None):
         from mpeg4.io import load_head
-        from recon.mark3d import default_fdp_path, load_mesh
+        from recon.mark import default_fdp_path, load_mesh
 
         self.mesh_path = Path(mesh).resolve()
         self.fdp_path = Path(fdp_path) if fdp_path is not None else default_fdp_path(mesh)
@@ -117,7 +117,7 @@ class MeshSession:
         head.feature_points = {}
 
     def _start_detected(self, mesh, detect, unit, up, forward, where: str):
-        from recon.mark3d import estimate_frame, landmark_detector, mark
+        from recon.mark import estimate_frame, landmark_detector, mark
 
         why = None
         if detect is True:
@@ -170,7 +170,7 @@ class MeshSession:
         return {i: (q[k] if i in INSIDE else snapped[k]) for k, i in enumerate(ids)}
 
     def surface(self, head: Head | None = None):
-        from recon.mark3d import _Surface
+        from recon.mark import _Surface
 
         if head is not None:
             return _Surface(head)
@@ -256,7 +256,7 @@ class MeshSession:
     def _bindings(self, points: dict[str, np.ndarray]) -> tuple[dict, dict]:
         """Each point snapped onto the surface and bound to its triangle (inside points to
         four vertices around them)."""
-        from recon.mark3d import _inside_binding
+        from recon.mark import _inside_binding
 
         surface = self.surface()
         # Points the page did not move keep their bindings (a snap could pick a surface

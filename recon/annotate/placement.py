@@ -18,8 +18,6 @@ in the photo supports them), so that the tool lists them for checking.
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 import os
 import sys
 import traceback
@@ -28,8 +26,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mpeg4.catalogue import FEATURE_POINTS, FP_IDS
+from mpeg4.catalogue import FP_IDS
 from mpeg4.io.fdp_json import FdpFile, ViewAnnotation, read_fdp_json
+from recon.landmarks import detector
+from recon.landmarks.layout import generic_layout, shown_in, visible_side
 
 __all__ = ["VIEWS", "GUESS_CONFIDENCE", "HEAD_FILL", "shown_in", "visible_side", "generic_layout", "ViewFit",
            "fit_view", "complete_views", "Initialisation", "detector", "initial_annotation"]
@@ -40,63 +40,6 @@ VIEWS = ("front", "side")
 GUESS_CONFIDENCE = 0.0
 #: With nothing known about a photo, the head's feature points span this share of its height.
 HEAD_FILL = 0.5
-
-
-def shown_in(view: str, side: str = "L") -> list[str]:
-    """Ids of the feature points a photo can show, in catalogue order.
-
-    Parameters
-    ----------
-    view : {"front", "side"}
-    side : {"L", "R"}
-        The side of the face a side photo shows.
-
-    Examples
-    --------
-    >>> len(shown_in("front")), "6.1" in shown_in("front"), "3.6" in shown_in("side")
-    (72, False, False)
-    """
-    if view == "front":
-        return [i for i in FP_IDS if FEATURE_POINTS[i].front != "N"]
-    if view == "side":
-        return [i for i in FP_IDS if FEATURE_POINTS[i].side_view != "N" and FEATURE_POINTS[i].side in ("C", side)]
-    raise ValueError(f"unknown view {view!r}")
-
-
-def visible_side(points: Mapping[str, object]) -> str:
-    """``"L"`` or ``"R"``: the face's side a side photo shows, by the majority of its labels.
-
-    The same rule as :func:`recon.calibrate.calibrate`; ``"L"`` when undecided.
-    """
-    labels = [FEATURE_POINTS[i].side for i in points if i in FEATURE_POINTS]
-    return "R" if labels.count("R") > labels.count("L") else "L"
-
-
-def generic_layout(head=None) -> dict[str, dict[str, np.ndarray]]:
-    """The generic head's feature points as an orthographic front and side camera see them.
-
-    Parameters
-    ----------
-    head : mpeg4.Head, optional
-        The shipped generic head by default.
-
-    Returns
-    -------
-    dict
-        ``"front"``: FP id → (2,) metres, (x, −y), image axes (x right, y down; the face's
-        left on the image's right). ``"side"``: FP id → (2,) metres, (−z, −y): the left
-        side seen from the face's left with the nose towards the image's left (a right
-        side photo is the mirror image, which :func:`fit_view` finds).
-    """
-    if head is None:
-        # The stored positions alone: decoding the whole head would double the tool's start-up.
-        from mpeg4.generic_head import generic_feature_points
-
-        pts = generic_feature_points()
-    else:
-        pts = head.fp_positions()
-    return {"front": {i: np.array([p[0], -p[1]]) for i, p in pts.items()},
-            "side": {i: np.array([-p[2], -p[1]]) for i, p in pts.items()}}
 
 
 @dataclass
@@ -295,28 +238,6 @@ class Initialisation:
     report: dict = field(default_factory=dict)
 
 
-def detector() -> tuple[Callable | None, str | None]:
-    """``recon.landmarks.detect`` if that module is installed, and why not otherwise.
-
-    Returns
-    -------
-    detect : callable or None
-        ``detect(front_path, side_path) -> FdpFile`` with per-point confidences.
-    reason : str or None
-        When ``detect`` is None: a short reason for the page.
-    """
-    if importlib.util.find_spec("recon.landmarks") is None:
-        return None, "no automatic detection is installed (recon.landmarks)"
-    try:
-        module = importlib.import_module("recon.landmarks")
-    except ImportError as e:  # installed, but a package it needs is missing
-        return None, f"automatic detection is unavailable: {e}"
-    detect = getattr(module, "detect", None)
-    if detect is None:
-        return None, "recon.landmarks has no detect function"
-    return detect, None
-
-
 def initial_annotation(front: str | os.PathLike, side: str | os.PathLike, fdp_path: str | os.PathLike | None = None,
                        detect: Callable | None | bool = True, layout: Mapping | None = None,
                        sizes: Mapping[str, tuple[int, int]] | None = None) -> Initialisation:
@@ -340,7 +261,7 @@ def initial_annotation(front: str | os.PathLike, side: str | os.PathLike, fdp_pa
     -------
     Initialisation
     """
-    from recon.fit import attach_photo_sizes
+    from recon.shape.fit import attach_photo_sizes
     from recon.photos import photo_size
 
     if sizes is None:

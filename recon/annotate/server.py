@@ -296,7 +296,7 @@ def annotate(front, side=None, fdp=None, open_browser: bool = True, port: int = 
     ipd_mm, focal_px : float, optional
         For the 3D preview's fit, as ``recon fit`` takes them.
     unit, up, forward : str, optional
-        The mesh's unit and axes (3D mode; see :func:`recon.mark3d.estimate_frame`).
+        The mesh's unit and axes (3D mode; see :func:`recon.mark.estimate_frame`).
     ready : callable, optional
         Called with the page's URL (which carries the token) once the server listens.
 

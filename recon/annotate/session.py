@@ -162,7 +162,7 @@ class AnnotationSession:
     detect : callable or bool
         Passed to :func:`recon.annotate.placement.initial_annotation`.
     ipd_mm, focal_px : float, optional
-        For the 3D preview's fit (see :func:`recon.fit.fit_head`); without ``focal_px``,
+        For the 3D preview's fit (see :func:`recon.shape.fit.fit_head`); without ``focal_px``,
         the focal length the photos record in their EXIF, if any (:attr:`camera_note`
         says which).
     background : bool
@@ -330,7 +330,7 @@ class AnnotationSession:
         """
         self.wait_ready()
         from mpeg4.io.fdp_json import read_fdp_json
-        from recon.fit import attach_photo_sizes
+        from recon.shape.fit import attach_photo_sizes
 
         with self._lock:
             if not self.fdp_path.exists():
@@ -377,12 +377,12 @@ class AnnotationSession:
 
         Returns a summary: 3D points, where each came from, height disagreements between
         the photos (mm), the camera and size assumptions, the time taken. Heights that
-        disagree by more than :func:`recon.fit.fit_head` accepts still give a preview, with
+        disagree by more than :func:`recon.shape.fit.fit_head` accepts still give a preview, with
         the refusal as ``warning`` (the files ``recon build`` makes keep the check).
         """
         self.wait_ready()
         from mpeg4.io import save_head
-        from recon.fit import fit_head
+        from recon.shape.fit import fit_head
 
         views = self.parse_views(data)
         t0 = time.perf_counter()

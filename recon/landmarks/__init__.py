@@ -24,7 +24,9 @@ The models run offline from the ``mediapipe`` wheel; without it :func:`detect` r
 
 from __future__ import annotations
 
+import importlib.util
 import os
+from collections.abc import Callable
 
 from mpeg4.io.fdp_json import FdpFile, ViewAnnotation
 
@@ -34,7 +36,7 @@ from .models import MediapipeMissing, mediapipe_available
 from .side import detect_side, facing_of
 from .silhouette import head_masks
 
-__all__ = ["detect", "detect_images", "detect_front", "detect_side", "facing_of", "ViewPoints", "SOURCES",
+__all__ = ["detect", "detector", "detect_images", "detect_front", "detect_side", "facing_of", "ViewPoints", "SOURCES",
            "load_mapping", "apply_mapping", "FpMapping", "MediapipeMissing", "mediapipe_available"]
 
 
@@ -95,3 +97,21 @@ def detect(front_path: str | os.PathLike, side_path: str | os.PathLike) -> FdpFi
     fdp.views["front"].image = os.fspath(front_path)
     fdp.views["side"].image = os.fspath(side_path)
     return fdp
+
+
+def detector() -> tuple[Callable | None, str | None]:
+    """:func:`detect` when the face models can be loaded, else None and why.
+
+    A cheap check (the ``mediapipe`` package is found, not imported), for the annotation
+    page and ``fmc mark`` to decide whether to offer detection.
+
+    Returns
+    -------
+    detect : callable or None
+        ``detect(front_path, side_path) -> FdpFile`` with per-point confidences.
+    reason : str or None
+        When ``detect`` is None: a short reason for the page.
+    """
+    if importlib.util.find_spec("mediapipe") is None:
+        return None, "automatic detection needs mediapipe, which is not installed (bash install.sh installs it)"
+    return detect, None

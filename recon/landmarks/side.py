@@ -172,7 +172,7 @@ _JAW = ("2.13",)
 def _back_share() -> float:
     """How far down the back of the skull (11.6) is on the generic head, as a share of the
     height from the top of the head (11.4) to under the nose (9.15)."""
-    from recon.annotate.placement import generic_layout
+    from .layout import generic_layout
 
     side = generic_layout()["side"]
     return float((side["11.6"][1] - side["11.4"][1]) / (side["9.15"][1] - side["11.4"][1]))
@@ -205,7 +205,7 @@ def _generic_ear(where: dict[str, np.ndarray], ipd: float) -> dict[str, np.ndarr
     """The generic head's ear outline (:data:`~recon.landmarks.side_parts.EAR_OUTLINE`)
     as a side photo nose-left shows it, ``ipd`` pixels between the pupils, centred where
     ``where``'s points are."""
-    from recon.annotate.placement import generic_layout
+    from .layout import generic_layout
 
     layout = generic_layout()
     g_ipd = float(np.linalg.norm(layout["front"]["3.5"] - layout["front"]["3.6"]))
@@ -262,7 +262,7 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
     side : {"L", "R"}
         The face's side the photo shows (``"L"`` when the nose points to the image's left).
     """
-    from recon.annotate.placement import shown_in
+    from .layout import shown_in
 
     from .colour import hairline_on, to_lab
     from .side_parts import EAR_OUTLINE, ear_box, eye_white, lip_region

@@ -9,8 +9,8 @@ pytest.importorskip("fast_simplification", reason="fast-simplification is not in
 
 from chain import clone_onto, target_head  # noqa: E402
 from mpeg4.generic_head import generic_head_path  # noqa: E402
-from recon.mark3d import mark_file  # noqa: E402
-from recon.synthetic import perfect_detector  # noqa: E402
+from recon.mark import mark_file  # noqa: E402
+from recon.evaluate.synthetic import perfect_detector  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 

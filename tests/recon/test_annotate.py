@@ -422,7 +422,7 @@ def test_heights_that_disagree_still_give_a_preview_with_the_refusal(client):
     assert "--focal" in fit["warning"] and abs(fit["height_residual_mm"]["11.1"]) > 8.0
     # The build keeps its check.
     from mpeg4.io.fdp_json import parse_fdp
-    from recon.fit import fit_head
+    from recon.shape.fit import fit_head
 
     with pytest.raises(InputError, match="disagree: 11.1"):
         fit_head(parse_fdp({"format": "mpeg4-fdp", "version": 1, "views": views}), where="x")

@@ -67,7 +67,7 @@ def _points(page):
 
 
 def _height_map(front, side, exclude):
-    """Side-photo height → front-photo height across the eye line, as recon.calibrate measures."""
+    """Side-photo height → front-photo height across the eye line, as recon.shape.calibrate measures."""
     across = front["3.5"] - front["3.6"]
     across /= np.linalg.norm(across)
     up = np.array([across[1], -across[0]])

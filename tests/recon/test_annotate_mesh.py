@@ -25,8 +25,8 @@ def mesh(remeshed):
 
 @pytest.fixture(scope="module")
 def marked(mesh, tmp_path_factory):
-    from recon.mark3d import mark_file
-    from recon.synthetic import perfect_detector
+    from recon.mark import mark_file
+    from recon.evaluate.synthetic import perfect_detector
 
     fdp, _ = mark_file(mesh.path, tmp_path_factory.mktemp("marked") / "head.fdp.json",
                        detect=perfect_detector(mesh.points), passes=1)
@@ -65,7 +65,7 @@ def test_save_snaps_to_the_surface_and_refuses_points_off_it(client, mesh):
     saved = read_fdp_json(session.fdp_path)
     assert np.linalg.norm(saved.points3d["9.3"] - p) < 0.0006
     from mpeg4.io.fdp_json import apply_fdp
-    from recon.mark3d import load_mesh
+    from recon.mark import load_mesh
 
     head = apply_fdp(load_mesh(mesh.path), saved)
     assert np.allclose(head.fp_position("9.3"), saved.points3d["9.3"], atol=1e-7)

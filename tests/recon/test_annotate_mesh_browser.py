@@ -30,8 +30,8 @@ if not (ROOT / "recon" / "annotate" / "static" / "vendor" / "three.bundle.js").e
 
 @pytest.fixture(scope="module")
 def marked(remeshed, tmp_path_factory):
-    from recon.mark3d import mark_file
-    from recon.synthetic import perfect_detector
+    from recon.mark import mark_file
+    from recon.evaluate.synthetic import perfect_detector
 
     mf = remeshed(7, "obj")
     mesh = tmp_path_factory.mktemp("mesh") / mf.path.name

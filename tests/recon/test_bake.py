@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from mpeg4 import InputError
-from recon.bake import bake, dilate_charts, fill_empty, interpolate, rasterize, rasterize_uv
+from recon.texture.bake import bake, dilate_charts, fill_empty, interpolate, rasterize, rasterize_uv
 
 
 def _grid(n=6):

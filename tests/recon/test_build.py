@@ -69,7 +69,7 @@ def test_rebuilding_replaces_the_bundle_and_a_failed_build_keeps_it(bundle, tmp_
 def test_atlas_is_non_overlapping_and_renders_the_same(bundle):
     from mpeg4.preview import head_meshes
     from mpeg4.render import render
-    from recon.atlas import repack
+    from recon.texture.atlas import repack
 
     pair = load_pair(EXAMPLE_FDP)
     result = build_head(pair, ipd_mm=CAM["ipd_mm"], focal_px=CAM["focal_px"], texture_size=512)
@@ -89,7 +89,7 @@ def test_atlas_is_non_overlapping_and_renders_the_same(bundle):
 
 def _coverage(uv, tris, n):
     """(n * n,) how many triangles strictly contain each texel centre."""
-    from recon.bake import _barycentric, uv_to_pixels
+    from recon.texture.bake import _barycentric, uv_to_pixels
 
     c = uv_to_pixels(uv, (n, n))[tris]
     lo, hi = np.floor(c.min(axis=1)).astype(int), np.ceil(c.max(axis=1)).astype(int)

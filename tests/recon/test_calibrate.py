@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from mpeg4 import FEATURE_POINTS, FP_IDS, FeaturePointBinding, Head, InputError, Part
-from recon.calibrate import calibrate
+from recon.shape.calibrate import calibrate
 
 
 def _symmetric_points(rng):

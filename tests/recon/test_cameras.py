@@ -5,7 +5,7 @@ import pytest
 
 from mpeg4 import InputError
 from mpeg4.render import Camera, look_rotation
-from recon.cameras import fit_camera
+from recon.texture.cameras import fit_camera
 
 
 def _points(n=40, seed=0):

@@ -5,8 +5,8 @@ import pytest
 import trimesh
 
 from mpeg4 import FP_IDS, FeaturePointBinding, Head, InputError, Part
-from recon.deform import bounding_controls, deform_head, dffd, fit_similarity, rbf_deform
-from recon.sibson import NaturalNeighbours
+from recon.shape.deform import bounding_controls, deform_head, dffd, fit_similarity, rbf_deform
+from recon.shape.sibson import NaturalNeighbours
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from recon.delight import MIN_SHADING, fit_lighting, sh_basis
+from recon.texture.delight import MIN_SHADING, fit_lighting, sh_basis
 
 
 def _sphere_photo(light, ambient, size=200, albedo=(200.0, 150.0, 120.0), seed=0):
@@ -57,8 +57,8 @@ def test_the_albedo_texture_gives_back_the_paint_where_the_lit_one_is_dark(ict_n
     """The example (ICT identity 5): its texture against the painted skin at every vertex."""
     from recon.build import build_head, load_pair
     from recon.example import EXAMPLE_FDP, example_camera
-    from recon.fidelity import albedo_error
-    from recon.synthetic import load_ict, make_person, skin_albedo
+    from recon.evaluate.fidelity import albedo_error
+    from recon.evaluate.synthetic import load_ict, make_person, skin_albedo
 
     data = load_ict(ict_npz)
     person = make_person(5, data)

@@ -7,7 +7,7 @@ from PIL import Image
 from mpeg4 import FEATURE_POINTS, InputError
 from mpeg4.generic_head import load_generic_head
 from mpeg4.io import FdpFile, ViewAnnotation, load_head, write_fdp_json
-from recon.fit import run_fit
+from recon.shape.fit import run_fit
 
 
 def _views(points, size=(800, 1000), k=2500.0):

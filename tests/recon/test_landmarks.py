@@ -47,7 +47,7 @@ def test_table_loads_and_covers_the_face_mesh_points():
 
 
 def test_side_table_covers_both_sides():
-    from recon.annotate.placement import shown_in
+    from recon.landmarks.layout import shown_in
 
     m = load_mapping(SIDE_MAP_FILE)
     want = (set(shown_in("side", "L")) | set(shown_in("side", "R"))) - {"11.4", "11.5", "11.6"}
@@ -189,7 +189,7 @@ def example():
 
 @needs_mediapipe
 def test_example_points_against_truth(example):
-    from recon.annotate.placement import shown_in
+    from recon.landmarks.layout import shown_in
 
     fdp, truth = example
     ipd = _ipd(truth.views["front"].points)
@@ -291,7 +291,7 @@ def test_swapped_photos_are_refused():
 @pytest.mark.slow
 def test_synthetic_identity_against_truth(ict_npz):
     from recon.landmarks import detect_images
-    from recon.synthetic import synthetic_pair
+    from recon.evaluate.synthetic import synthetic_pair
 
     pair = synthetic_pair(11)
     fdp = detect_images(pair.front, pair.side)

@@ -1,6 +1,6 @@
-"""recon.mark3d: feature points on re-meshed ICT identities, the fdp.json round trip, bad input.
+"""recon.mark: feature points on re-meshed ICT identities, the fdp.json round trip, bad input.
 
-The 2D detector here is :func:`recon.synthetic.perfect_detector` (the true points seen by
+The 2D detector here is :func:`recon.evaluate.synthetic.perfect_detector` (the true points seen by
 the renders' cameras), so these tests measure everything after detection: the frame, the
 ray casting, the separate meshes, the hidden points and the file.
 """
@@ -19,8 +19,8 @@ from mpeg4.head import Head, Part
 
 pytest.importorskip("fast_simplification", reason="fast-simplification is not installed (pip install '.[test]')")
 
-from recon.mark3d import check_mesh, estimate_frame, mark, mark_file  # noqa: E402
-from recon.synthetic import perfect_detector  # noqa: E402
+from recon.mark import check_mesh, estimate_frame, mark, mark_file  # noqa: E402
+from recon.evaluate.synthetic import perfect_detector  # noqa: E402
 
 LANDMARK_GROUPS = (2, 3, 4, 8, 9)
 

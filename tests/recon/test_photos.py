@@ -74,7 +74,7 @@ def test_recon_fit_on_the_example_takes_the_lens_from_exif(tmp_path):
     35 mm equivalent (141 mm) a phone would record fit within a fraction of a millimetre."""
     from mpeg4.io import load_head
     from recon.example import EXAMPLE_DIR, EXAMPLE_FDP, example_camera
-    from recon.fit import run_fit
+    from recon.shape.fit import run_fit
 
     cam = example_camera()
     for name in ("front", "side"):

@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 from scipy.spatial import ConvexHull, Voronoi
 
 from mpeg4.errors import InputError
-from recon.sibson import NaturalNeighbours, sibson_coordinates
+from recon.shape.sibson import NaturalNeighbours, sibson_coordinates
 
 CUBE = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
 

@@ -10,7 +10,7 @@ from recon.example import EXAMPLE_DIR, EXAMPLE_FDP
 
 @pytest.fixture(scope="module")
 def pair(ict_npz):
-    from recon.synthetic import load_ict, synthetic_pair
+    from recon.evaluate.synthetic import load_ict, synthetic_pair
 
     return synthetic_pair(7, size=(400, 500), data=load_ict(ict_npz), texture_size=256)
 
@@ -34,7 +34,7 @@ def test_points_are_where_the_camera_puts_the_head_s_feature_points(pair):
 
 
 def test_same_seed_same_photos(pair, ict_npz):
-    from recon.synthetic import load_ict, synthetic_pair
+    from recon.evaluate.synthetic import load_ict, synthetic_pair
 
     again = synthetic_pair(7, size=(400, 500), data=load_ict(ict_npz), texture_size=256)
     assert np.array_equal(again.front, pair.front) and np.array_equal(again.side, pair.side)

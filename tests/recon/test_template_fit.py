@@ -1,4 +1,4 @@
-"""recon.template_fit: the generic head fitted to a re-meshed ICT identity's surface.
+"""recon.shape.template_fit: the generic head fitted to a re-meshed ICT identity's surface.
 
 The found points are the identity's true eye, nose and mouth points with 1.5 mm of noise
 added; the fit must place the points no render shows (eyebrows, hairline, ears) near the
@@ -10,7 +10,7 @@ import pytest
 
 from mpeg4.errors import InputError
 from mpeg4.io import load_head
-from recon.template_fit import fit_generic
+from recon.shape.template_fit import fit_generic
 
 SEEN_GROUPS = (3, 8, 9)
 NOT_SKIN = ("3.5", "3.6", "9.8", "9.9", "9.10", "9.11")  # pupils, teeth

@@ -4,14 +4,14 @@ import numpy as np
 import pytest
 
 from mpeg4 import InputError
-from recon.blend import blend_multiband
+from recon.texture.blend import blend_multiband
 from recon.build import PhotoPair, build_head, load_pair
-from recon.cameras import fit_camera
+from recon.texture.cameras import fit_camera
 from recon.example import EXAMPLE_FDP, example_camera
-from recon.fidelity import reprojection, seam_smoothness, side_reprojection
-from recon.synthetic import PHOTO_AMBIENT, PHOTO_LIGHT
+from recon.evaluate.fidelity import reprojection, seam_smoothness, side_reprojection
+from recon.evaluate.synthetic import PHOTO_AMBIENT, PHOTO_LIGHT
 from recon.texture import FRONT, HIDDEN, feature_line, texture_skin, vertex_regions
-from recon.warp import FeatureLineWarp
+from recon.texture.warp import FeatureLineWarp
 
 PHOTO = (PHOTO_LIGHT, PHOTO_AMBIENT)  # the light the example and the identities were photographed in
 
@@ -26,7 +26,7 @@ def example():
 
 @pytest.fixture(scope="module")
 def identities(ict_npz):
-    from recon.synthetic import load_ict, synthetic_pair
+    from recon.evaluate.synthetic import load_ict, synthetic_pair
 
     out = []
     for seed in (1000, 1003):

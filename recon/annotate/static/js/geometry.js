@@ -59,7 +59,7 @@ export function midline(points, catalogue, exclude = [], fallbackX = 0) {
 }
 
 /**
- * Heights in the front photo are measured across the eye line, as recon.calibrate does
+ * Heights in the front photo are measured across the eye line, as recon.shape.calibrate does
  * after removing the head's roll: {origin, across (unit, along the eye line), up (unit)}.
  */
 export function frontFrame(front) {

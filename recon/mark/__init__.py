@@ -29,7 +29,7 @@ comes in its own units and axes. :func:`mark` gives it both:
 7. :func:`find_parts` finds the eyes (the pieces the pupils' rays hit), teeth and tongue
    (the pieces inside the mouth) by the points and the mesh's connectivity.
 8. :func:`fitted_points` fits the generic head's skin to the surface, following the
-   points found on it (:func:`recon.template_fit.fit_generic`: a similarity, then a
+   points found on it (:func:`recon.shape.template_fit.fit_generic`: a similarity, then a
    thin-plate-spline field refined by non-rigid closest-point matching). A grey render
    shows no eyebrows, hairline or ear detail, so the points a detector can only guess
    there (:func:`untextured_guesses`) are the fitted generic head's, with lower
@@ -66,7 +66,7 @@ from mpeg4.errors import InputError
 from mpeg4.head import FeaturePointBinding, Head
 from mpeg4.io.fdp_json import FdpFile, PartSource, place_mesh
 
-from .deform import fit_similarity
+from recon.shape.deform import fit_similarity
 
 __all__ = ["UNITS", "AXES", "Frame", "check_mesh", "estimate_frame", "refine_frame", "Views", "render_views",
            "landmark_detector", "untextured_guesses", "Hit", "lift", "find_parts", "fitted_points", "hidden_points",
@@ -474,7 +474,7 @@ class Views:
         The images as PNG files (what a photo detector reads).
     frame : (4, 4) float64
         File → render-world (neutral) similarity, so that points known in the file's
-        coordinates can be projected (:func:`recon.synthetic.perfect_detector`).
+        coordinates can be projected (:func:`recon.evaluate.synthetic.perfect_detector`).
     """
 
     images: dict
@@ -546,18 +546,12 @@ def landmark_detector() -> Callable[[Views], FdpFile]:
     InputError
         When recon.landmarks is not installed, or the models it runs (mediapipe) are not.
     """
-    import importlib
-
-    from .annotate.placement import detector
+    from recon.landmarks import detector
 
     detect, why = detector()
     if detect is None:
         raise InputError(f"no 2D landmark detector: {why}", where="fmc mark",
                          fix="run bash install.sh, or place the points by hand: recon annotate MESH")
-    available = getattr(importlib.import_module("recon.landmarks"), "mediapipe_available", None)
-    if available is not None and not available():
-        raise InputError("no 2D landmark detector: recon.landmarks needs mediapipe, which is not installed",
-                         where="fmc mark", fix="run bash install.sh, or place the points by hand: recon annotate MESH")
 
     def run(views: Views) -> FdpFile:
         return detect(os.fspath(views.paths["front"]), os.fspath(views.paths["side"]))
@@ -995,7 +989,7 @@ def find_parts(head: Head, hits: Mapping[str, Hit]) -> tuple[dict[str, PartSourc
 
 def fitted_points(head: Head, hits: dict[str, Hit], guessed=(), give: float = 0.0,
                   surface: _Surface | None = None, generic: Head | None = None) -> dict[str, Hit]:
-    """Points from the generic head fitted to the surface (:func:`recon.template_fit.fit_generic`).
+    """Points from the generic head fitted to the surface (:func:`recon.shape.template_fit.fit_generic`).
 
     The found skin points (all but ``guessed``) are the fit's anchors. Then:
 
@@ -1025,7 +1019,7 @@ def fitted_points(head: Head, hits: dict[str, Hit], guessed=(), give: float = 0.
     dict of str to Hit
         In catalogue order.
     """
-    from .template_fit import fit_generic
+    from recon.shape.template_fit import fit_generic
 
     if "skin" not in head.parts:
         return hits

@@ -23,7 +23,7 @@ __all__ = ["fit_head", "run_fit", "image_size", "attach_photo_sizes", "require_v
 
 def image_size(path: str | os.PathLike) -> tuple[int, int]:
     """(width, height) in pixels of a photo as displayed (EXIF orientation applied)."""
-    from .photos import photo_size
+    from recon.photos import photo_size
 
     return photo_size(path)
 
@@ -77,9 +77,9 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
     generic : Head, optional
         The head to deform; the shipped generic head by default.
     ipd_mm, focal_px, height_tol_mm
-        See :func:`recon.calibrate.calibrate`.
+        See :func:`recon.shape.calibrate.calibrate`.
     method : {"dffd", "rbf"}
-        See :func:`recon.deform.deform_head`.
+        See :func:`recon.shape.deform.deform_head`.
     where : str
         Name of the annotation file, for error messages.
 
@@ -141,7 +141,7 @@ def run_fit(front_photo, side_photo, fdp_path, out_dir, ipd_mm: float = DEFAULT_
     attach_photo_sizes(fdp, {n: image_size(p) for n, p in photos.items()}, os.fspath(fdp_path),
                        {n: os.fspath(p) for n, p in photos.items()})
     if focal_px is None:
-        from .photos import photos_focal_px
+        from recon.photos import photos_focal_px
 
         focal_px, note = photos_focal_px(front_photo, side_photo)
         say(note)

@@ -23,7 +23,7 @@ import numpy as np
 from mpeg4.errors import InputError
 from mpeg4.head import Head
 
-from .cameras import FittedCamera
+from recon.texture.cameras import FittedCamera
 
 __all__ = ["Fidelity", "SideFidelity", "AlbedoError", "albedo_error", "face_mask", "reprojection", "side_reprojection", "seam_smoothness"]
 
@@ -50,7 +50,7 @@ class Fidelity:
 def face_mask(head: Head, front: FittedCamera, shape: tuple[int, int], shrink: int = 4) -> np.ndarray:
     """(H, W) bool: inside the front region's outline in the photo, shrunk by ``shrink``
     pixels."""
-    from .texture import feature_line, feature_polygon
+    from recon.texture import feature_line, feature_polygon
 
     pts = head.fp_positions()
     skin = head.skin
@@ -189,7 +189,7 @@ def side_reprojection(head: Head, skin, photo: np.ndarray, side: FittedCamera, p
     light : (direction, ambient), optional
         Render lit so, as :func:`reprojection`.
     """
-    from .texture import FRONT, SEEN
+    from recon.texture import FRONT, SEEN
 
     part = head.parts["skin"]
     if len(part.vertices) != len(skin.vertex_region):
@@ -271,7 +271,7 @@ def albedo_error(head: Head, skin, truth: np.ndarray, side: FittedCamera, blur_p
         Textured with ``skin`` (its skin's first vertices are the originals).
     skin : recon.texture.SkinTexture
     truth : (N, 3) float
-        True albedo (RGB, 0–255) per original skin vertex (:func:`recon.synthetic.skin_albedo`).
+        True albedo (RGB, 0–255) per original skin vertex (:func:`recon.evaluate.synthetic.skin_albedo`).
     side : FittedCamera
         The side photo's camera (for the cheek: see :func:`side_reprojection`).
     blur_px : float, optional
@@ -284,7 +284,7 @@ def albedo_error(head: Head, skin, truth: np.ndarray, side: FittedCamera, blur_p
     from scipy.ndimage import map_coordinates
     from scipy.spatial import cKDTree
 
-    from .texture import FRONT, MIRRORED, SEEN
+    from recon.texture import FRONT, MIRRORED, SEEN
 
     part = head.parts["skin"]
     tex = part.texture.astype(np.float32)
@@ -327,7 +327,7 @@ def albedo_error(head: Head, skin, truth: np.ndarray, side: FittedCamera, blur_p
 def seam_smoothness(layers, masks, band: int = 8) -> dict[str, float]:
     """Mean gradient magnitude (grey levels per pixel) across the layers' borders, for the
     multiresolution spline, a hard cut and a feathered edge (16 px), on the same layers."""
-    from .blend import blend_feather, blend_hard, blend_multiband, seam_band, seam_gradient
+    from recon.texture.blend import blend_feather, blend_hard, blend_multiband, seam_band, seam_gradient
 
     where = seam_band(masks, band)
     return {"multiband": seam_gradient(blend_multiband(layers, masks), where),

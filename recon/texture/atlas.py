@@ -4,7 +4,7 @@ The composite texture of :mod:`recon.texture` is an unrolled picture of the head
 read and to retouch, but its charts overlap where the photos' layers meet and much of the
 square is unused. Tools that bake lighting or paint in texture space want an atlas: every
 triangle its own texels, charts packed tightly. :func:`repack` asks xatlas for one and
-bakes the composite into it (:func:`recon.bake.bake`); the head keeps its shape, feature
+bakes the composite into it (:func:`recon.texture.bake.bake`); the head keeps its shape, feature
 points, morph targets and animation tables (vertices xatlas splits along its chart seams
 are duplicated with :func:`mpeg4.seams.split_vertices`).
 """

@@ -1,6 +1,6 @@
 """The photos' cameras, recovered from 3D feature points and the pixels they were marked at.
 
-Calibration (:mod:`recon.calibrate`) turns marked pixels into 3D points; texturing needs
+Calibration (:mod:`recon.shape.calibrate`) turns marked pixels into 3D points; texturing needs
 the way back, from any point of the head to a pixel of each photo. :func:`fit_camera`
 finds the camera that best maps the head's 3D feature points onto the pixels marked in a
 photo: a scaled orthographic camera (least-squares affine camera made orthonormal) or,

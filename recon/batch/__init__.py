@@ -385,7 +385,7 @@ def _build_here(row: ManifestRow, out_dir: str, defaults: dict, created: str | N
                 clone_step: Callable | None, detect: Callable | None) -> dict:
     from mpeg4.io import save_head
 
-    from .build import run_build
+    from recon.build import run_build
 
     t0, cpu0 = time.perf_counter(), _cpu_seconds()
     out = Path(out_dir)
@@ -811,8 +811,8 @@ def run_batch(manifest: str | os.PathLike, out_dir: str | os.PathLike, workers: 
     -------
     BatchReport
     """
-    from .build import DEFAULT_TEXTURE_SIZE, build_time
-    from .calibrate import DEFAULT_IPD_MM
+    from recon.build import DEFAULT_TEXTURE_SIZE, build_time
+    from recon.shape.calibrate import DEFAULT_IPD_MM
 
     t0 = time.perf_counter()
     rows = read_manifest(manifest)

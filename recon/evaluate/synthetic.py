@@ -28,8 +28,8 @@ from mpeg4.head import Head
 from mpeg4.io.fdp_json import FdpFile, ViewAnnotation
 from mpeg4.render import Camera, RenderMesh, look_rotation, render, vertex_normals
 
-from .bake import fill_empty, interpolate, rasterize_uv
-from .materials import eye_texture
+from recon.texture.bake import fill_empty, interpolate, rasterize_uv
+from recon.texture.materials import eye_texture
 
 __all__ = ["PHOTO_LIGHT", "PHOTO_AMBIENT", "skin_albedo", "default_ict_path", "load_ict", "identity_vertices", "identity_head", "Person", "make_person",
            "photograph", "PhotoPair", "synthetic_pair", "view_camera", "visible_points", "perfect_detector",
@@ -519,7 +519,7 @@ def perfect_detector(points: dict[str, np.ndarray], name: str = "perfect 2D dete
     Returns
     -------
     callable
-        ``detect(views) -> FdpFile`` for :func:`recon.mark3d.mark`: each point the
+        ``detect(views) -> FdpFile`` for :func:`recon.mark.mark`: each point the
         catalogue says a front or a left-side photo shows, at the pixel where the renders'
         cameras see it (confidence 1). It reports what a perfect detector would, so that
         everything after detection can be measured on its own.

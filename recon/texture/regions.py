@@ -1,0 +1,268 @@
+"""Which photo each part of the skin is textured from: the feature lines and the regions.
+
+The side photo's **feature line** (the feature points from the top of the skull down to the
+chin, :data:`~recon.texture.warp.FEATURE_LINE`) is laid on the head's skin for each side
+(:func:`feature_line`); with the front camera it bounds the front photo's polygon
+(:func:`feature_polygon`). Each skin vertex then takes a region (:data:`REGIONS`): the front
+photo inside that polygon where the front camera sees it, the seen or the mirrored side
+photo elsewhere by the side of the midline it lies on, hidden inside the mouth and eye
+sockets, or a fold next to seen skin (:func:`vertex_regions`). Triangles take the region of
+most of their corners, and vertices shared by triangles of different regions are
+duplicated (:func:`split_by_region`), so that each corner samples its own layer.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import cv2
+import numpy as np
+
+from mpeg4.catalogue import FEATURE_POINTS
+from mpeg4.errors import InputError
+from mpeg4.head import Head
+from mpeg4.render import Camera, render
+
+from .cameras import FittedCamera
+from .warp import FEATURE_LINE, sections
+
+__all__ = ["REGIONS", "FRONT", "SEEN", "MIRRORED", "HIDDEN", "FOLD", "line_ids", "feature_line", "feature_polygon",
+           "vertex_regions", "line_depth", "triangle_regions", "split_by_region"]
+
+_NECK_STEP = 0.01  # metres between the neck line's points
+
+#: Texture regions of the skin: which layer a triangle samples.
+REGIONS = ("front", "seen side", "mirrored side", "hidden", "fold")
+FRONT, SEEN, MIRRORED, HIDDEN, FOLD = range(5)
+
+_VISIBLE_TOL = 0.003  # metres: a vertex this close behind the nearest surface is seen
+_FOLD = 0.004  # metres: hidden skin this close to seen skin is a fold and takes its colour
+
+
+def line_ids(side: str) -> tuple[str, ...]:
+    """The feature line of the face's ``"L"`` (as listed) or ``"R"`` side (mirrored ids)."""
+    if side == "L":
+        return FEATURE_LINE
+    return tuple(FEATURE_POINTS[i].mirror or i for i in FEATURE_LINE)
+
+
+def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, skin_triangles: np.ndarray,
+                 side: str) -> tuple[np.ndarray, np.ndarray]:
+    """The feature line of one side of the face, top to bottom.
+
+    Its feature points (:data:`FEATURE_LINE`, mirrored for ``"R"``) and, below the angle of
+    the jaw, a line down the neck: at every :data:`_NECK_STEP` down to the bottom of the
+    skin, the point of the skin's cross-section (its convex outline) that faces half way
+    between the front and the side, where both photos see the neck at 45°. The front photo
+    gets the neck's front, the side photos what lies behind.
+
+    Returns
+    -------
+    points : (K, 3) float64
+        Metres.
+    is_fp : (K,) bool
+        Which of them are feature points.
+    """
+    ids = line_ids(side)
+    missing = [i for i in ids if i not in points3d]
+    if missing:
+        raise InputError(f"the head lacks the feature points {', '.join(missing)} of the texture's feature lines",
+                         where="texture", fix="give the head all of " + ", ".join(ids))
+    fps = np.array([np.asarray(points3d[i], float) for i in ids])
+    sign = 1.0 if side == "L" else -1.0
+    v = np.asarray(skin_vertices, float)
+    heights = np.arange(fps[-1, 1] - _NECK_STEP, v[:, 1].min() + 0.004, -_NECK_STEP)
+    neck = []
+    from scipy.spatial import ConvexHull
+
+    for y, xz in zip(heights, sections(v, skin_triangles, heights)):
+        if (xz[:, 0] * sign > 0).sum() < 3:
+            break
+        try:
+            hull = xz[ConvexHull(xz).vertices]
+        except Exception:  # a degenerate section: the line ends here
+            break
+        # The outline's point that faces half way between the two cameras (its support
+        # point along the 45° direction): both photos see the neck there at 45°, not the
+        # front one at a grazing angle.
+        k = int(np.argmax(hull @ np.array([sign, 1.0])))
+        neck.append([hull[k, 0], y, hull[k, 1]])
+    points = np.vstack([fps, np.array(neck).reshape(-1, 3)])
+    return points, np.r_[np.ones(len(fps), bool), np.zeros(len(neck), bool)]
+
+
+def feature_polygon(front: FittedCamera, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+    """(K, 2) front-photo pixels of the closed outline of the front region: the left
+    feature line from the top of the skull down the neck, then the right one back up."""
+    return front.project(np.vstack([left, right[::-1][:-1]]))
+
+
+def _visible(points: np.ndarray, cam: Camera, depth: np.ndarray) -> np.ndarray:
+    """(K,) bool: the camera sees the points.
+
+    A point is seen when nothing lies nearer than it anywhere in the 5 x 5 pixels around
+    its projection but a surface within :data:`_VISIBLE_TOL`: the farthest depth of the
+    neighbourhood is what it is compared with, which keeps surfaces seen at grazing angles
+    (their depth changes fast from pixel to pixel) and points on the silhouette.
+    """
+    far = cv2.dilate(np.where(np.isfinite(depth), depth, 1e9).astype(np.float32), np.ones((5, 5), np.uint8))
+    px = np.round(cam.project(points)).astype(np.int64)
+    h, w = depth.shape
+    inside = (px[:, 0] >= 0) & (px[:, 0] < w) & (px[:, 1] >= 0) & (px[:, 1] < h)
+    out = np.zeros(len(points), dtype=bool)
+    d = cam.depth(points[inside])
+    out[inside] = d <= far[px[inside, 1], px[inside, 0]] + _VISIBLE_TOL
+    return out
+
+
+# Extra directions (yaw, pitch in degrees) from which a vertex may be seen, to tell the
+# inside of the mouth and the eye sockets (seen from nowhere) from surfaces the photos
+# merely miss (behind the ears, under the chin).
+_AROUND = ((180.0, 0.0), (135.0, 0.0), (-135.0, 0.0), (0.0, 70.0), (0.0, -60.0), (45.0, 0.0), (-45.0, 0.0))
+
+
+def _seen_from_around(head: Head, points: np.ndarray, size: int = 384) -> np.ndarray:
+    """(K,) bool: some camera around the head sees the points."""
+    meshes = _head_meshes(head)
+    allv = np.concatenate([m.vertices for m in meshes])
+    out = np.zeros(len(points), dtype=bool)
+    for yaw, pitch in _AROUND:
+        cam = Camera.fit(allv, size, size, yaw_deg=yaw, pitch_deg=pitch, margin=0.02)
+        out |= _visible(points, cam, _depth(meshes, cam))
+    return out
+
+
+def vertex_regions(vertices: np.ndarray, polygon_px: np.ndarray, front_px: np.ndarray, line_depth: np.ndarray,
+                   seen_anywhere: np.ndarray, seen_sign: float, depth_margin: float = 0.005) -> np.ndarray:
+    """Which layer each skin vertex takes its colour from.
+
+    Parameters
+    ----------
+    vertices : (N, 3) float
+        Skin vertices, metres.
+    polygon_px : (K, 2) float
+        :func:`feature_polygon`.
+    front_px : (N, 2) float
+        The vertices' front-photo pixels.
+    line_depth : (N,) float
+        Depth (z, metres) of the feature lines at each vertex's height (:func:`line_depth`).
+    seen_anywhere : (N,) bool
+        Whether any camera around the head sees them (the photos' and others).
+    seen_sign : {+1, -1}
+        +1 if the side photo shows the face's left (x > 0), -1 for its right.
+    depth_margin : float
+        Metres behind the line's depth still counted as the face.
+
+    Returns
+    -------
+    (N,) int8
+        :data:`REGIONS` index: front inside the polygon and in front of the feature lines'
+        depth (the face, including the few places the front camera does not quite see,
+        such as the nostrils); hidden where no camera around the head sees the vertex
+        (the mouth and eye sockets); otherwise the side of the midline it lies on.
+    """
+    from skimage.measure import points_in_poly
+
+    v = np.asarray(vertices)
+    inside = points_in_poly(front_px, polygon_px) & (v[:, 2] >= np.asarray(line_depth) - depth_margin)
+    region = np.where(v[:, 0] * seen_sign >= 0, SEEN, MIRRORED).astype(np.int8)
+    region[~np.asarray(seen_anywhere)] = HIDDEN
+    region[inside & np.asarray(seen_anywhere)] = FRONT
+    return region
+
+
+def line_depth(left: np.ndarray, right: np.ndarray, heights: np.ndarray) -> np.ndarray:
+    """(N,) z (metres) of the feature lines at the given heights (y, metres): linear along
+    each line by height, the mean of the left and right lines, held beyond the ends."""
+    out = []
+    for p in (np.asarray(left), np.asarray(right)):
+        order = np.argsort(p[:, 1])
+        out.append(np.interp(heights, p[order, 1], p[order, 2]))
+    return 0.5 * (out[0] + out[1])
+
+
+def triangle_regions(vertex_region: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(M,) int8: the region most of a triangle's corners belong to (ties: the first in
+    :data:`REGIONS`, so the front photo wins)."""
+    r = np.asarray(vertex_region)[np.asarray(triangles)]
+    counts = np.stack([(r == k).sum(axis=1) for k in range(HIDDEN + 1)], axis=1)
+    return np.argmax(counts, axis=1).astype(np.int8)
+
+
+def _folds(vertices: np.ndarray, triangles: np.ndarray, tri_region: np.ndarray, vertex_region: np.ndarray,
+           reach: float = None) -> np.ndarray:
+    """Hidden triangles that touch skin a camera sees within ``reach`` metres become folds
+    (:data:`FOLD`): creases and rims that open up when the face moves, to be coloured like
+    the skin beside them rather than like the inside of the mouth."""
+    from scipy.spatial import cKDTree
+
+    reach = _FOLD if reach is None else reach
+    out = np.asarray(tri_region).copy()
+    seen = np.asarray(vertex_region) != HIDDEN
+    hid = np.flatnonzero(out == HIDDEN)
+    if not len(hid) or not seen.any():
+        return out
+    corners = np.unique(np.asarray(triangles)[hid])
+    dist, _ = cKDTree(vertices[seen]).query(vertices[corners])
+    near = np.zeros(len(vertices), bool)
+    near[corners[dist < reach]] = True
+    out[hid[near[np.asarray(triangles)[hid]].any(axis=1)]] = FOLD
+    return out
+
+
+def split_by_region(triangles: np.ndarray, tri_region: np.ndarray, vertex_region: np.ndarray,
+                    n_vertices: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Duplicate the vertices shared by triangles of different regions (except along the
+    front region's border, where the side triangles share the front's vertex).
+
+    Returns
+    -------
+    source : (V',) int64
+        For each vertex of the split mesh, the original vertex; the first ``n_vertices``
+        are the originals themselves (so feature-point bindings and per-vertex tables stay
+        valid), the duplicates follow.
+    triangles : (M, 3) int64
+        The triangles over the split vertices.
+    region : (V',) int8
+        The region each split vertex samples. An original keeps its own region when one
+        of its triangles uses it, else the first region its triangles use.
+    """
+    tri = np.asarray(triangles, dtype=np.int64)
+    corner_region = np.repeat(np.asarray(tri_region, dtype=np.int64), 3)
+    corner_vertex = tri.reshape(-1)
+    nr = len(REGIONS)
+    used = np.zeros((n_vertices, nr), dtype=bool)
+    used[corner_vertex, corner_region] = True
+    # Along the feature lines the side triangles take the front copy of a shared vertex:
+    # both sides of the seam then sample the same place of the blended texture, and the
+    # side triangles bend into their own layer within one ring.
+    side_corner = (corner_region == SEEN) | (corner_region == MIRRORED)
+    corner_region = np.where(side_corner & used[corner_vertex, FRONT], FRONT, corner_region)
+    used[:] = False
+    used[corner_vertex, corner_region] = True
+    own = np.asarray(vertex_region, dtype=np.int64)
+    keep = np.where(used[np.arange(n_vertices), own], own, np.argmax(used, axis=1))
+    keep[~used.any(axis=1)] = own[~used.any(axis=1)]  # vertices of no triangle
+    # New ids for (vertex, region) pairs other than the kept one.
+    extra = used.copy()
+    extra[np.arange(n_vertices), keep] = False
+    ev, er = np.nonzero(extra)
+    new_id = np.full((n_vertices, nr), -1, dtype=np.int64)
+    new_id[np.arange(n_vertices), keep] = np.arange(n_vertices)
+    new_id[ev, er] = n_vertices + np.arange(len(ev))
+    out_tri = new_id[corner_vertex, corner_region].reshape(-1, 3)
+    source = np.r_[np.arange(n_vertices), ev]
+    region = np.r_[keep, er].astype(np.int8)
+    return source, out_tri, region
+
+
+def _head_meshes(head: Head):
+    """The head's parts for depth renders only: no textures to upload, no normals to compute."""
+    from mpeg4.render import RenderMesh
+
+    return [RenderMesh(p.vertices, p.triangles, normals=np.zeros_like(p.vertices)) for p in head.parts.values()]
+
+
+def _depth(meshes, cam: Camera) -> np.ndarray:
+    _, depth = render(meshes, cam, return_depth=True, samples=0)
+    return depth
