@@ -46,7 +46,7 @@ _SKIN_PARTS = ("Face", "Head and Neck", "Mouth socket", "Eye socket left", "Eye 
 
 def default_ict_path() -> Path:
     """``../shared/data/ict_facekit/ict_facekit.npz`` beside the project's root."""
-    return Path(__file__).resolve().parents[2] / "shared" / "data" / "ict_facekit" / "ict_facekit.npz"
+    return Path(__file__).resolve().parents[3] / "shared" / "data" / "ict_facekit" / "ict_facekit.npz"
 
 
 @functools.lru_cache(maxsize=2)
