@@ -170,7 +170,7 @@ class MeshSession:
         return {i: (q[k] if i in INSIDE else snapped[k]) for k, i in enumerate(ids)}
 
     def surface(self, head: Head | None = None):
-        from recon.mark import _Surface
+        from recon.mark.lift import _Surface
 
         if head is not None:
             return _Surface(head)
@@ -256,7 +256,7 @@ class MeshSession:
     def _bindings(self, points: dict[str, np.ndarray]) -> tuple[dict, dict]:
         """Each point snapped onto the surface and bound to its triangle (inside points to
         four vertices around them)."""
-        from recon.mark import _inside_binding
+        from recon.mark.parts import _inside_binding
 
         surface = self.surface()
         # Points the page did not move keep their bindings (a snap could pick a surface
