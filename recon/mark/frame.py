@@ -24,23 +24,12 @@ __all__ = ["UNITS", "AXES", "check_mesh", "Frame", "estimate_frame", "refine_fra
 #: Units a mesh may be in (metres per unit). Detection chooses among m, cm and mm.
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 
-
 #: Axis names for the up and forward flags.
 AXES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1), "-z": (0, 0, -1)}
-
-
 _HEAD_SIZE = 0.3  # metres: a head with some neck, for choosing the unit
-
-
 _NOSE_CAP = 0.015  # metres: depth of the cap in which the nose ends
-
-
 _SLICE = 0.105  # metres beyond the nose: the forehead and skull above, under the chin below
-
-
 _CLOSE_CALL = 0.03  # metres: up scores nearer than this leave it to the feature points
-
-
 _NOT_A_NOSE = 0.8  # a narrowest end at least this share of the next one is no nose
 
 

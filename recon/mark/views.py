@@ -24,13 +24,10 @@ __all__ = ["Views", "render_views", "landmark_detector", "untextured_guesses"]
 # Points a photo shows by colour or the face's oval, not by the shape a render shows.
 _TEXTURE_POINTS = ("2.10", "2.11", "2.12", "2.13", "2.14", "11.1", "11.2", "11.3", "11.5")
 
-
 # How far the generic head's shape may overrule recon.landmarks' points on a render
 # (template_fit.fit_generic's give): best of 1e-4, 1e-3, 1e-2 on ICT identities 20-27,
 # which the benchmark (0-19) does not use.
 _LANDMARK_GIVE = 1e-3
-
-
 _SKIN, _WHITE, _PINK = (0.86, 0.68, 0.56), (0.92, 0.92, 0.9), (0.75, 0.4, 0.42)
 
 
