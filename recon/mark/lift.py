@@ -20,6 +20,7 @@ from .views import Views
 
 __all__ = ["Hit", "lift"]
 
+
 @dataclass
 class Hit:
     """A feature point on the surface.

@@ -18,6 +18,7 @@ from .lift import Hit, _pieces
 
 __all__ = ["find_parts"]
 
+
 def _sphere_centre(points: np.ndarray) -> np.ndarray:
     """Centre of the least-squares sphere through (K, 3) points."""
     a = np.c_[2 * points, np.ones(len(points))]

@@ -20,6 +20,7 @@ from .lift import Hit, _Surface
 
 __all__ = ["fitted_points", "hidden_points"]
 
+
 def fitted_points(head: Head, hits: dict[str, Hit], guessed=(), give: float = 0.0,
                   surface: _Surface | None = None, generic: Head | None = None) -> dict[str, Hit]:
     """Points from the generic head fitted to the surface (:func:`recon.shape.template_fit.fit_generic`).
