@@ -22,7 +22,6 @@ import numpy as np
 
 from mpeg4.errors import InputError
 from mpeg4.head import Head
-
 from recon.texture.cameras import FittedCamera
 
 __all__ = ["Fidelity", "SideFidelity", "AlbedoError", "albedo_error", "face_mask", "reprojection", "side_reprojection", "seam_smoothness"]
