@@ -350,33 +350,45 @@ def test_contours_bring_true_counterparts_closer_on_an_ict_identity(identity):
     assert miss[True][0] < miss[False][0] - 0.05 and miss[True][1] < miss[False][1] - 0.05
 
 
-def test_antialiasing_takes_the_roughness_out_of_dense_to_sparse(bench, identity):
+def test_antialiasing_filters_detail_a_sparse_target_cannot_hold_and_leaves_smooth_motion(bench, identity):
     source = load_generic_head()
     coarse, kept = bench.remesh(identity)
     assert 0.3 < coarse.skin.n_vertices / identity.skin.n_vertices < 0.37
     assert correspond(source, identity).support == 0  # as dense as the source: off
+    face = kept < 9409
+    # Detail finer than the target can hold: a 4 mm ripple, where the re-meshed target's
+    # edges are about 7 mm (a Nyquist wavelength of 14 mm) and the source's 3.2 mm.
+    v = source.skin.vertices
+    ripple = {"skin": SparseDisplacement.from_dense(0.0005 * np.sin(2 * np.pi * v[:, 0] / 0.004)[:, None]
+                                                    * np.array([0.0, 0.0, 1.0]))}
+    default = correspond(source, coarse)
+    assert 0.001 < default.support < 0.01  # sparser than the source: a disc a fraction of each vertex's edges
+    kept_share = {}
+    for name, corr in (("off", correspond(source, coarse, antialias=0.0)), ("default", default),
+                       ("wide", correspond(source, coarse, antialias=12.5 * default.support))):
+        out = corr.transfer({"r": ripple})["r"]["skin"].dense(len(kept))
+        kept_share[name] = np.abs(out[face, 2]).mean() / np.abs(ripple["skin"].dense(len(v))[kept][face, 2]).mean()
+    # Point sampling keeps the ripple (measured 0.78 of it: aliased into the coarse mesh);
+    # a disc of half the target's spacing takes it down to 0.47.
+    assert kept_share["off"] > 0.7 and kept_share["wide"] < 0.6 and kept_share["default"] <= kept_share["off"]
+    # ICT's motions carry no such detail: point-sampled on the sparse target they are barely
+    # rougher than the truth (measured 0.1415 against 0.1404), so the default disc stays
+    # small (4 % of the spacing) and changes the error little (6.29 % against 6.32 %),
+    # where a disc wide enough to filter the ripple blurs the motion (8.6 %).
     names = ["jawOpen", "mouthSmile_L", "eyeBlink_L", "browInnerUp_R"]
     truth = bench.scaled_truth(source, identity, names)
     truth = {m: {"skin": SparseDisplacement.from_dense(truth[m]["skin"].dense(source.skin.n_vertices)[kept])}
              for m in names}
-    face = kept < 9409
+    rough_truth = np.mean([bench.roughness(truth[m]["skin"].dense(len(kept)), coarse.skin.triangles, face)
+                           for m in names])
     rough, err = {}, {}
-    for support in (0.0, None, 0.02):
-        corr = correspond(source, coarse, antialias=support)
-        if support is None:
-            # Sparser than the source: on, a disc a fraction of each vertex's edges.
-            assert 0.001 < corr.support < 0.01
-        cl = corr.transfer({m: source.morph_targets[m] for m in names})
+    for support in (0.0, None):
+        cl = correspond(source, coarse, antialias=support).transfer({m: source.morph_targets[m] for m in names})
         rough[support] = np.mean([bench.roughness(cl[m]["skin"].dense(len(kept)), coarse.skin.triangles, face)
                                   for m in names])
         err[support] = np.mean([_pyun(cl[m], truth[m], len(kept)) for m in names])
-    rough_truth = np.mean([bench.roughness(truth[m]["skin"].dense(len(kept)), coarse.skin.triangles, face)
-                           for m in names])
-    # Without the filter the field is rougher than the truth's (measured 0.1431 against
-    # 0.1408); with it, nearer the truth (0.1414) and no less accurate (6.32 % against
-    # 6.37 %). A fixed disc of 0.02 smooths too much: 0.1363 and 6.66 %.
-    assert rough[0.0] > rough[None] > rough_truth > rough[0.02]
-    assert err[None] <= err[0.0] < err[0.02]
+    assert rough[0.0] < 1.03 * rough_truth
+    assert abs(err[None] - err[0.0]) < 0.02 * err[0.0]
 
 
 def _angle(r):
