@@ -161,7 +161,8 @@ def _check_cameras(cams: dict[str, FittedCamera], pair: PhotoPair, where: str) -
 def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float = DEFAULT_IPD_MM,
                focal_px: float | None = None, method: str = "dffd", texture_size: int = DEFAULT_TEXTURE_SIZE,
                atlas: bool = False, blend: str = "opencv", generic: Head | None = None,
-               keep_lighting: bool = False, progress: Callable[[str], None] | None = None) -> BuildResult:
+               keep_lighting: bool = False, progress: Callable[[str], None] | None = None,
+               height_tol_mm: float = 8.0) -> BuildResult:
     """A textured head from annotated photos.
 
     Parameters
@@ -187,6 +188,10 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
         shaded twice.
     progress : callable, optional
         Called with a short message before each step.
+    height_tol_mm : float
+        Largest disagreement of a point's height between the photos: reviewed points
+        beyond it are an error, unreviewed (detected) ones are left out and listed
+        (:func:`recon.shape.calibrate.calibrate`).
 
     Returns
     -------
@@ -199,13 +204,18 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     t0 = time.perf_counter()
     say("fitting the generic head to the feature points")
     head, cal = fit_head(shape.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
-                         where=shape.paths.get("fdp", "fdp.json"))
+                         where=shape.paths.get("fdp", "fdp.json"), height_tol_mm=height_tol_mm)
+    if cal.dropped:
+        say(f"left out {len(cal.dropped)} detected points whose heights disagree between the photos by more than "
+            f"{height_tol_mm:g} mm: " + ", ".join(f"{i} ({d['disagreement_mm']:+.1f} mm, {d['view']} photo"
+                                               f"{'s' if d['view'] == 'both' else ''})" for i, d in cal.dropped.items())
+            + "; check them with recon annotate")
     tex_pair = texture or shape
     tex_head = head
     if texture is not None:
         say("fitting the generic head to the texture's photos")
         tex_head, _ = fit_head(texture.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
-                               where=texture.paths.get("fdp", "fdp.json"))
+                               where=texture.paths.get("fdp", "fdp.json"), height_tol_mm=height_tol_mm)
     times["shape"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     pts = tex_head.fp_positions()
@@ -343,7 +353,8 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
               method: str = "dffd", texture_size: int = DEFAULT_TEXTURE_SIZE, atlas: bool = False,
               shape_from: str | os.PathLike | None = None, texture_from: str | os.PathLike | None = None,
               keep_lighting: bool = False, progress: Callable[[str], None] | None = None, result: list | None = None,
-              created: str | None = None, provenance: dict | None = None) -> dict[str, Path]:
+              created: str | None = None, provenance: dict | None = None,
+              height_tol_mm: float = 8.0) -> dict[str, Path]:
     """``recon build``: write the textured head bundle.
 
     Parameters
@@ -356,7 +367,7 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
     out_dir : path
         The bundle's folder (created). Files of a previous build are replaced only once the
         new ones are complete.
-    ipd_mm, focal_px, method, texture_size, atlas, keep_lighting
+    ipd_mm, focal_px, method, texture_size, atlas, keep_lighting, height_tol_mm
         See :func:`build_head`. Without ``focal_px``, the focal length the photos record
         in their EXIF (:func:`recon.photos.photos_focal_px`), else orthographic cameras.
     shape_from, texture_from : path, optional
@@ -397,8 +408,10 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
         focal_from = "exif" if focal_px is not None else None
         say(note)
     res = build_head(shape, texture, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
-                     texture_size=texture_size, atlas=atlas, keep_lighting=keep_lighting, progress=say)
+                     texture_size=texture_size, atlas=atlas, keep_lighting=keep_lighting, progress=say,
+                     height_tol_mm=height_tol_mm)
     options = {"ipd_mm": ipd_mm, "focal_px": focal_px, "focal_from": focal_from, "method": method,
+               "height_tol_mm": height_tol_mm,
                "texture_size": texture_size, "keep_lighting": keep_lighting,
                "atlas": atlas, "shape_texture_separation": texture is not None}
     out = Path(out_dir)

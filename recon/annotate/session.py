@@ -311,6 +311,7 @@ class AnnotationSession:
             fdp = FdpFile(views=views, points3d=self._base.points3d, bindings=self._base.bindings,
                           texcoords=self._base.texcoords, fapu=self._base.fapu,
                           metadata=dict(self._base.metadata), version=self._base.version)
+            fdp.metadata["reviewed"] = True  # a person placed or checked these points on the page
             fdp.metadata["annotate"] = {"initialised_from": self.initialisation.source,
                                         "photos": {n: self._image_name(n) for n in VIEWS}}
             backup = _write_file(self, fdp, force)

@@ -31,7 +31,7 @@ from mpeg4.head import Head
 
 from .deform import bounding_controls, dffd, fit_similarity
 
-__all__ = ["DEFAULT_IPD_MM", "Calibration", "calibrate"]
+__all__ = ["DEFAULT_IPD_MM", "CORE_GROUPS", "Calibration", "HeightsDisagree", "calibrate"]
 
 #: Adult mean interpupillary distance (mm) used when the user gives none.
 DEFAULT_IPD_MM = 63.0
@@ -61,6 +61,10 @@ class Calibration:
         Which side of the face the side photo shows (by its labels).
     height_residual_mm : dict of str to float
         For points marked in both views, side-photo height minus front-photo height.
+    dropped : dict of str to dict
+        Points left out because their heights disagreed (``drop_outliers``): FP id →
+        ``{"view": "front" | "side" | "both", "disagreement_mm": float}``, in the order
+        they were dropped.
     assumptions : dict
         What the numbers rest on (IPD, camera model), for the output's provenance.
     """
@@ -73,6 +77,24 @@ class Calibration:
     visible_side: str
     height_residual_mm: dict[str, float]
     assumptions: dict = field(default_factory=dict)
+    dropped: dict[str, dict] = field(default_factory=dict)
+
+
+#: The face's core: eyes, nose, mouth and chin (groups 2, 3, 8, 9). Their heights are
+#: found by the face mesh on both photos; when they disagree the photos or the cameras are
+#: wrong, and dropping points would hide it.
+CORE_GROUPS = (2, 3, 8, 9)
+
+
+class HeightsDisagree(InputError):
+    """The heights of points marked in both photos disagree beyond the tolerance.
+
+    ``residual_mm`` holds each shared point's disagreement (side minus front, mm).
+    """
+
+    def __init__(self, residual_mm: dict[str, float], *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.residual_mm = residual_mm
 
 
 def _as_points(view: Mapping, name: str) -> dict[str, np.ndarray]:
@@ -113,8 +135,17 @@ def _side_depths(side: dict[str, np.ndarray]) -> float:
 def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], generic: Head,
               ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
               front_size: tuple[int, int] | None = None, side_size: tuple[int, int] | None = None,
-              height_tol_mm: float = 8.0) -> Calibration:
+              height_tol_mm: float = 8.0, confidence: Mapping[str, Mapping[str, float]] | None = None,
+              drop_outliers: bool = False) -> Calibration:
     """3D feature points from 2D points marked on a front and a side photo.
+
+    With ``drop_outliers`` (points found automatically, not reviewed), a point whose
+    heights disagree beyond ``height_tol_mm`` is left out of the view it is less sure of
+    and the rest fitted again, the worst first, until all agree; the dropped points are
+    listed in :attr:`Calibration.dropped` and take their missing coordinates as unmarked
+    points do. Only a disagreement of the face's core (:data:`CORE_GROUPS`) stays an error:
+    there the photos, not a point, are wrong. Without it (marked points) any disagreement
+    is an error naming the worst points.
 
     Parameters
     ----------
@@ -134,11 +165,66 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
     height_tol_mm : float
         Largest accepted disagreement between a point's height in the two views (``inf``:
         no check; recorded as None in the assumptions).
+    confidence : dict, optional
+        ``{"front": {id: c}, "side": {id: c}}`` with c in [0, 1]: weights of the height fit,
+        and which view loses a disagreeing point (the less sure one; both when equal).
+    drop_outliers : bool
+        Drop disagreeing points instead of failing (see above).
 
     Returns
     -------
     Calibration
     """
+    front = dict(front)
+    side = dict(side)
+    confidence = {v: dict((confidence or {}).get(v) or {}) for v in ("front", "side")}
+    dropped: dict[str, dict] = {}
+    while True:
+        try:
+            cal = _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, height_tol_mm, confidence)
+        except HeightsDisagree as e:
+            if not drop_outliers:
+                raise
+            res = e.residual_mm
+            worst = max(res, key=lambda i: abs(res[i]))
+            if FEATURE_POINTS[worst].group in CORE_GROUPS:
+                raise HeightsDisagree(e.residual_mm, e.what + f" (after dropping {', '.join(dropped) or 'nothing'})",
+                                      where=e.where, fix="the face's core points (eyes, nose, mouth, chin) cannot "
+                                                         "disagree by this much on the same face: check that the two "
+                                                         "photos show the same person in the same pose, and their "
+                                                         "points (recon annotate)") from None
+            dropped[worst] = {"view": _drop(worst, front, side, confidence),
+                              "disagreement_mm": round(float(e.residual_mm[worst]), 1)}
+            continue
+        cal.dropped = dropped
+        return cal
+
+
+def _drop(i: str, front: dict, side: dict, confidence: dict) -> str:
+    """Remove point ``i`` (a front id; the side may hold it under its mirror label) from the
+    view less sure of it, or from both; returns which."""
+    side_id = i if i in side else FEATURE_POINTS[i].mirror
+    cf = confidence["front"].get(i)
+    cs = confidence["side"].get(side_id)
+    if cf is not None and cs is not None and cf != cs:
+        view = "front" if cf < cs else "side"
+    else:
+        view = "both"
+    if view in ("front", "both"):
+        front.pop(i, None)
+    if view in ("side", "both"):
+        side.pop(side_id, None)
+    return view
+
+
+def _weights(shared: list[str], side_any_label: dict[str, str], confidence: dict) -> np.ndarray:
+    """(len(shared),) weights of the height fit: the less sure view's confidence, at least 0.1."""
+    w = [min(confidence["front"].get(i, 1.0), confidence["side"].get(side_any_label[i], 1.0)) for i in shared]
+    return np.sqrt(np.clip(np.asarray(w, float), 0.1, 1.0))
+
+
+def _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, height_tol_mm, confidence):
+    """One calibration of the given points (see :func:`calibrate`)."""
     front = _as_points(front, "front")
     side = _as_points(side, "side")
     _check_inside(front, front_size, "front")
@@ -171,12 +257,13 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
     visible = "R" if labelled.count("R") > labelled.count("L") else "L"
     # Side heights for every id the side view gives, its own or its mirror partner's.
     side_any: dict[str, np.ndarray] = {}
+    label: dict[str, str] = {}
     for i, p in side.items():
-        side_any[i] = p
+        side_any[i], label[i] = p, i
     for i, p in side.items():
         m = FEATURE_POINTS[i].mirror
         if m and m not in side_any:
-            side_any[m] = p
+            side_any[m], label[m] = p, i
     shared = [i for i in FP_IDS if i in fu and i in side_any]
     if len(shared) < 3:
         raise InputError(f"only {len(shared)} points are marked in both views ({', '.join(shared) or 'none'})",
@@ -193,18 +280,18 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
         sf = ipd / ipd_px
         X = {i: (p[0] - x_mid) * sf for i, p in fu.items()}
         Yf = {i: -p[1] * sf for i, p in fu.items()}
-        a, b, resid = _fit_heights(shared, Yf, side_any)
+        a, b, resid = _fit_heights(shared, Yf, side_any, _weights(shared, label, confidence))
         ss = abs(a)
         Z = {i: facing * p[0] * ss for i, p in side_any.items()}
         Ys = {i: a * p[1] + b for i, p in side_any.items()}
         scales = {"front": sf, "side": ss}
     else:
         X, Yf, Z, Ys, resid, scales = _perspective(front, side_any, generic, ipd, focal_px, front_size, side_size,
-                                                   roll, facing, visible, shared)
+                                                   roll, facing, visible, shared, _weights(shared, label, confidence))
     worst = max(shared, key=lambda i: abs(resid[i]))
     if abs(resid[worst]) * 1000 > height_tol_mm:
         top = sorted(shared, key=lambda i: -abs(resid[i]))[:3]
-        raise InputError("the heights of the points marked in both photos disagree: "
+        raise HeightsDisagree({i: resid[i] * 1000 for i in shared}, "the heights of the points marked in both photos disagree: "
                          + ", ".join(f"{i} by {resid[i] * 1000:+.1f} mm" for i in top),
                          where="side view", fix=f"check those points (tolerance {height_tol_mm:g} mm); the two "
                                                 "photos must show the same neutral pose"
@@ -291,12 +378,13 @@ def _generic_guess(g: dict, full: list, known: np.ndarray) -> dict:
     return dict(zip(ids, moved))
 
 
-def _fit_heights(shared, Yf, side_any):
-    """Straight line from side-photo rows to front heights (metres): a, b, residuals."""
+def _fit_heights(shared, Yf, side_any, w):
+    """Straight line from side-photo rows to front heights (metres), weighted by ``w``: a, b,
+    residuals."""
     v = np.array([side_any[i][1] for i in shared])
     y = np.array([Yf[i] for i in shared])
     A = np.c_[v, np.ones_like(v)]
-    (a, b), *_ = np.linalg.lstsq(A, y, rcond=None)
+    (a, b), *_ = np.linalg.lstsq(A * w[:, None], y * w, rcond=None)
     if not a < 0:
         raise InputError("the side photo's heights run the wrong way against the front photo's",
                          where="side view", fix="check that the side photo is upright and its points are the "
@@ -304,7 +392,7 @@ def _fit_heights(shared, Yf, side_any):
     return a, b, {i: float(a * side_any[i][1] + b - Yf[i]) for i in shared}
 
 
-def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, facing, visible, shared):
+def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, facing, visible, shared, w):
     """Alternate between the views with pinhole cameras; returns the same pieces as the
     orthographic branch (X, Yf, Z, Ys, residuals, scales)."""
     cf = (np.array(front_size, float) - 1) / 2
@@ -341,7 +429,7 @@ def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, 
         xv = np.array([sigma * x_seen(i) for i in shared])
         y = np.array([Yf[i] for i in shared])
         A = np.c_[np.ones_like(v), -v]
-        (y0, dist_s), *_ = np.linalg.lstsq(A, y - v * xv, rcond=None)
+        (y0, dist_s), *_ = np.linalg.lstsq(A * w[:, None], (y - v * xv) * w, rcond=None)
         if not dist_s > 0:
             raise InputError("the side photo's heights run the wrong way against the front photo's", where="side view",
                              fix="check that the side photo is upright")

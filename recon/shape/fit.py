@@ -67,7 +67,8 @@ def attach_photo_sizes(fdp, sizes: dict[str, tuple[int, int]], where: str, photo
 
 
 def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
-             method: str = "dffd", where: str = "fdp.json", height_tol_mm: float = 8.0) -> tuple[Head, Calibration]:
+             method: str = "dffd", where: str = "fdp.json", height_tol_mm: float = 8.0,
+             drop_outliers: bool | None = None) -> tuple[Head, Calibration]:
     """The generic head deformed to the feature points annotated on two photos.
 
     Parameters
@@ -82,6 +83,11 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
         See :func:`recon.shape.deform.deform_head`.
     where : str
         Name of the annotation file, for error messages.
+    drop_outliers : bool, optional
+        Leave out points whose heights disagree (see :func:`recon.shape.calibrate.calibrate`)
+        instead of failing; by default when the points are unreviewed (``fdp.metadata
+        ["reviewed"]`` is False: automatic detection nobody has checked), weighted by
+        their confidences.
 
     Returns
     -------
@@ -96,8 +102,11 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
     views = require_views(fdp, where)
     size = {n: (v.width, v.height) if v.width and v.height else None for n, v in views.items()}
     try:
+        if drop_outliers is None:
+            drop_outliers = fdp.metadata.get("reviewed") is False
         cal = calibrate(views["front"].points, views["side"].points, generic, ipd_mm=ipd_mm, focal_px=focal_px,
-                        front_size=size["front"], side_size=size["side"], height_tol_mm=height_tol_mm)
+                        front_size=size["front"], side_size=size["side"], height_tol_mm=height_tol_mm,
+                        confidence={n: v.confidence for n, v in views.items()}, drop_outliers=drop_outliers)
     except InputError as e:
         raise InputError(e.what, where=f"{where}, {e.where}" if e.where else where, fix=e.fix) from None
     goal = {i: p for i, p in cal.points.items() if cal.source[i] != "generic"}
@@ -105,7 +114,7 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
     head.metadata = dict(head.metadata, fit=dict(
         cal.assumptions, roll_deg=round(cal.roll_deg, 3), side_facing=cal.side_facing,
         visible_side=cal.visible_side, point_sources=cal.source,
-        height_residual_mm={k: round(v, 3) for k, v in cal.height_residual_mm.items()}))
+        height_residual_mm={k: round(v, 3) for k, v in cal.height_residual_mm.items()}, dropped_points=cal.dropped))
     return head, cal
 
 

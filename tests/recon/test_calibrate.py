@@ -128,3 +128,72 @@ def test_bad_input(scene):
     swapped = dict(front, **{"3.5": front["3.6"], "3.6": front["3.5"]})
     with pytest.raises(InputError, match="swap 3.5 and 3.6"):
         calibrate(swapped, side, generic)
+
+
+# --- unreviewed points: the disagreeing ones dropped, not the build ------------------------
+
+#: The example photos' focal length, pixels (a 100 mm-equivalent lens on a 1024-px photo).
+FOCAL = 5333.33
+
+
+def _example_views():
+    from mpeg4.io import read_fdp_json
+    from recon.example import EXAMPLE_DIR
+
+    fdp = read_fdp_json(EXAMPLE_DIR / "example.fdp.json")
+    return fdp, {n: dict(v.points) for n, v in fdp.views.items()}, {n: (v.width, v.height) for n, v in fdp.views.items()}
+
+
+def test_unreviewed_points_that_disagree_are_dropped_and_listed():
+    from mpeg4.generic_head import load_generic_head
+    from recon.shape.calibrate import HeightsDisagree
+
+    generic = load_generic_head()
+    _, views, size = _example_views()
+    cam = dict(front_size=size["front"], side_size=size["side"], focal_px=FOCAL)
+    ref = calibrate(views["front"], views["side"], generic, **cam)
+    # The hairline on the bushy hair in the front photo, an ear on the cheek: 40 px (~20 mm) off.
+    front = dict(views["front"])
+    front["11.3"] = front["11.3"] + [0.0, -40.0]
+    front["10.9"] = front["10.9"] + [0.0, 35.0]
+    with pytest.raises(HeightsDisagree, match=r"(11\.3|10\.9) by .*(11\.3|10\.9) by"):  # reviewed: an error naming them
+        calibrate(front, views["side"], generic, **cam)
+    conf = {"front": {"11.3": 0.3, "10.9": 0.9}, "side": {"11.3": 0.8, "10.9": 0.9}}
+    cal = calibrate(front, views["side"], generic, **cam, confidence=conf, drop_outliers=True)
+    assert sorted(cal.dropped) == ["10.9", "11.3"]
+    assert cal.dropped["11.3"]["view"] == "front" and cal.dropped["10.9"]["view"] == "both"
+    assert cal.dropped["11.3"]["disagreement_mm"] < -9 and cal.dropped["10.9"]["disagreement_mm"] > 9
+    # What is left agrees, and the face is where the clean points put it.
+    assert max(abs(r) for r in cal.height_residual_mm.values()) < 8
+    core = [i for i in ref.points if FEATURE_POINTS[i].group in (2, 3, 8, 9)]
+    assert max(np.linalg.norm(cal.points[i] - ref.points[i]) for i in core) < 1e-3
+    # 11.3 keeps its side-photo height: a few mm from the clean calibration, not the 20 mm
+    # the front photo's point was moved.
+    assert abs(cal.points["11.3"][1] - ref.points["11.3"][1]) < 0.006
+
+
+def test_a_disagreeing_core_point_stays_an_error_naming_the_photos():
+    from mpeg4.generic_head import load_generic_head
+    from recon.shape.calibrate import HeightsDisagree
+
+    _, views, size = _example_views()
+    front = dict(views["front"])
+    front["9.3"] = front["9.3"] + [0.0, 60.0]  # the nose tip: the photos, not a point, are wrong
+    with pytest.raises(HeightsDisagree, match="same person in the same pose"):
+        calibrate(front, views["side"], load_generic_head(), front_size=size["front"], side_size=size["side"],
+                  focal_px=FOCAL, drop_outliers=True)
+
+
+def test_fit_head_drops_only_for_unreviewed_points_and_records_them():
+    from recon.shape.fit import fit_head
+
+    fdp, views, _ = _example_views()
+    fdp.views["front"].points["11.2"] = fdp.views["front"].points["11.2"] + [0.0, -45.0]
+    with pytest.raises(InputError, match=r"11\.2 by"):
+        fit_head(fdp, focal_px=FOCAL)
+    fdp.metadata["reviewed"] = False
+    head, cal = fit_head(fdp, focal_px=FOCAL)
+    assert list(cal.dropped) == ["11.2"]
+    assert head.metadata["fit"]["dropped_points"]["11.2"]["view"] == "both"
+    with pytest.raises(InputError, match=r"11\.2 by"):
+        fit_head(fdp, focal_px=FOCAL, drop_outliers=False)
