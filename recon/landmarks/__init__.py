@@ -40,7 +40,8 @@ __all__ = ["detect", "detector", "detect_images", "detect_front", "detect_side",
            "load_mapping", "apply_mapping", "FpMapping", "MediapipeMissing", "mediapipe_available"]
 
 
-def detect_images(front, side, front_name: str = "front photo", side_name: str = "side photo") -> FdpFile:
+def detect_images(front, side, front_name: str = "front photo", side_name: str = "side photo",
+                  side_facing: str | None = None) -> FdpFile:
     """:func:`detect` on (H, W, 3) uint8 RGB arrays.
 
     Returns
@@ -50,29 +51,45 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
         ``metadata["landmarks"]``: per view, the source of each point
         (:data:`SOURCES`; on the side photo all are ``silhouette`` or ``rule``: its points
         are the front photo's mesh placed by the side photo's silhouette), the side the side
-        photo shows, and which of the eye, lips and ear the side photo was seen to show.
+        photo shows, which way it faces and how sure that is (``side_facing``, see
+        :mod:`recon.landmarks.facing`), which of the eye, lips and ear the side photo was
+        seen to show, and ``warnings`` (a facing taken with some cues against it).
+    side_facing : {"left", "right"}, optional
+        Where the nose points in the side photo, when the user knows.
     """
+    from .facing import AGREE
+
     front_mask, side_mask = head_masks([front, side])
     f = detect_front(front, front_name, front_mask)
-    s, shown = detect_side(side, f, front.shape[0], side_name, side_mask)
+    s, shown = detect_side(side, f, front.shape[0], side_name, side_mask, facing=side_facing)
+    facing = s.extras["facing_found"]
     views = {}
     for name, v, img, path in (("front", f, front, front_name), ("side", s, side, side_name)):
         views[name] = ViewAnnotation(image=None, width=int(img.shape[1]), height=int(img.shape[0]),
                                      points=dict(v.points), confidence=dict(v.confidence))
     meta = {"landmarks": {"method": "recon.landmarks (MediaPipe face mesh + silhouettes)",
                           "side_shows": shown,
+                          "side_facing": {"facing": facing.facing, "confidence": round(facing.confidence, 3),
+                                          "votes": {k: round(v, 3) for k, v in facing.votes.items()},
+                                          "given": facing.given},
                           "side_parts_seen": [k for k in ("eye", "lips", "ear") if s.extras.get(k) is not None],
                           "source": {"front": dict(f.source), "side": dict(s.source)}}}
+    if not facing.given and (facing.confidence < AGREE or facing.against):
+        meta["landmarks"]["warnings"] = [
+            f"the side photo was read as {facing.describe()}; if the nose points the other way, give "
+            f"--side-facing {'right' if facing.facing == 'left' else 'left'}"]
     return FdpFile(views=views, metadata=meta)
 
 
-def detect(front_path: str | os.PathLike, side_path: str | os.PathLike) -> FdpFile:
+def detect(front_path: str | os.PathLike, side_path: str | os.PathLike, side_facing: str | None = None) -> FdpFile:
     """Feature points on a front and a side photo, with confidences.
 
     Parameters
     ----------
     front_path, side_path : path
         The photos (JPEG/PNG; EXIF orientation applied, as the annotation page shows them).
+    side_facing : {"left", "right"}, optional
+        Where the nose points in the side photo (found when omitted).
 
     Returns
     -------
@@ -93,7 +110,7 @@ def detect(front_path: str | os.PathLike, side_path: str | os.PathLike) -> FdpFi
     side = read_photo(side_path, "side photo")
     check_photo(front, os.fspath(front_path))
     check_photo(side, os.fspath(side_path))
-    fdp = detect_images(front, side, os.fspath(front_path), os.fspath(side_path))
+    fdp = detect_images(front, side, os.fspath(front_path), os.fspath(side_path), side_facing)
     fdp.views["front"].image = os.fspath(front_path)
     fdp.views["side"].image = os.fspath(side_path)
     return fdp

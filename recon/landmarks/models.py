@@ -26,8 +26,8 @@ import threading
 
 import numpy as np
 
-__all__ = ["MEDIAPIPE_VERSIONS", "MediapipeMissing", "mediapipe_available", "face_landmarks", "person_mask",
-           "N_LANDMARKS"]
+__all__ = ["MEDIAPIPE_VERSIONS", "MediapipeMissing", "mediapipe_available", "face_landmarks", "face_keypoints",
+           "person_mask", "N_LANDMARKS"]
 
 #: mediapipe releases whose wheel carries the face mesh, iris and segmentation models.
 MEDIAPIPE_VERSIONS = ("0.10.14", "0.10.21")
@@ -77,6 +77,12 @@ def _face_mesh():
 
 
 @functools.lru_cache(maxsize=1)
+def _face_detector():
+    # The full-range model: it also finds faces turned to a profile, with both ear tragions.
+    return _mediapipe().solutions.face_detection.FaceDetection(model_selection=1, min_detection_confidence=0.3)
+
+
+@functools.lru_cache(maxsize=1)
 def _segmenter():
     return _mediapipe().solutions.selfie_segmentation.SelfieSegmentation(model_selection=0)
 
@@ -115,6 +121,39 @@ def face_landmarks(image: np.ndarray) -> list[np.ndarray]:
         faces.append(np.c_[lm[:, 0] * w - 0.5, lm[:, 1] * h - 0.5, lm[:, 2] * w])
     faces.sort(key=lambda f: -np.ptp(f[:, 0]) * np.ptp(f[:, 1]))
     return faces
+
+
+def face_keypoints(image: np.ndarray) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """The most confident face of MediaPipe's face detector (BlazeFace, full range).
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8
+        RGB photo.
+
+    Returns
+    -------
+    keypoints : (6, 2) float64
+        Pixels (x right, y down) of the right eye, left eye, nose tip, mouth centre, right
+        ear tragion and left ear tragion (the face's own sides).
+    box : (4,) float64
+        x, y, width, height of the face, pixels.
+    score : float
+        The detector's confidence in [0, 1].
+
+    None when no face is found.
+    """
+    image = _rgb(image)
+    h, w = image.shape[:2]
+    with _lock:
+        result = _face_detector().process(image)
+    if not result.detections:
+        return None
+    best = max(result.detections, key=lambda d: d.score[0])
+    loc = best.location_data
+    kp = np.array([(k.x * w - 0.5, k.y * h - 0.5) for k in loc.relative_keypoints], dtype=np.float64)
+    b = loc.relative_bounding_box
+    return kp, np.array([b.xmin * w, b.ymin * h, b.width * w, b.height * h]), float(best.score[0])
 
 
 def person_mask(image: np.ndarray) -> np.ndarray:

@@ -94,8 +94,8 @@ def _apex(mask: np.ndarray, y_top: float, depth: float) -> float:
     return float(np.clip(-b / (2 * a), x.min(), x.max()))
 
 
-def _oriented(image: np.ndarray, where: str, mask: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, bool]:
-    """The side photo turned nose-left, its silhouette, and whether it was flipped."""
+def _checked(image: np.ndarray, where: str, mask: np.ndarray | None = None) -> np.ndarray:
+    """The side photo's head silhouette, once the photo is seen to be a profile with a head."""
     h, w = image.shape[:2]
     faces = face_landmarks(image)
     if faces:
@@ -110,17 +110,12 @@ def _oriented(image: np.ndarray, where: str, mask: np.ndarray | None = None) -> 
     if mask.sum() < 0.01 * h * w:
         raise InputError("no head found in the side photo (the person could not be told from the background)",
                          where=where, fix="photograph the profile against a plain, contrasting background")
-    flip = facing_of(mask) == "right"
-    if flip:
-        # Everything below works on the photo turned nose-left; segmenting it again there
-        # (rather than mirroring this mask) makes a mirrored photo give exactly mirrored points.
-        image = np.ascontiguousarray(image[:, ::-1])
-        mask = head_mask(image)
-    return image, mask, flip
+    return mask
 
 
 def register_profile(image: np.ndarray, front: ViewPoints, front_height: int,
-                     where: str = "side photo", mask: np.ndarray | None = None) -> tuple[ProfileFit, dict]:
+                     where: str = "side photo", mask: np.ndarray | None = None,
+                     facing: str | None = None) -> tuple[ProfileFit, dict]:
     """The front photo's face mesh laid onto a side photo's profile.
 
     Parameters
@@ -135,6 +130,9 @@ def register_profile(image: np.ndarray, front: ViewPoints, front_height: int,
         The photo's name, for messages.
     mask : (H, W) bool, optional
         The head's silhouette in the photo as given (:func:`head_mask` when omitted).
+    facing : {"left", "right"}, optional
+        Where the nose points, when the user knows; found by
+        :func:`recon.landmarks.facing.profile_facing` otherwise, and refused when unsure.
 
     Returns
     -------
@@ -142,17 +140,39 @@ def register_profile(image: np.ndarray, front: ViewPoints, front_height: int,
         Face mesh (depth, height) → pixels of the photo turned nose-left.
     context : dict
         ``image`` and ``mask`` turned nose-left, ``flipped`` (bool), ``distance`` (the
-        outline's distance map).
+        outline's distance map), ``facing`` (:class:`~recon.landmarks.facing.Facing`).
     """
-    image, mask, flip = _oriented(image, where, mask)
+    from .facing import SURE, profile_facing
+
+    mask = _checked(image, where, mask)
+
+    def fitted(m: np.ndarray, dist: np.ndarray | None = None) -> ProfileFit:
+        try:
+            return fit_profile(m, front.extras["landmarks"], front.points["11.5"][1], front.ipd_px,
+                               image.shape[0] / front_height, outline_distance(m) if dist is None else dist)
+        except ValueError:
+            raise InputError("the side photo's silhouette has no profile", where=where,
+                             fix="give a profile photo showing the whole head, from the top of the hair to the "
+                                 "chin") from None
+
+    costs = None
+    if facing is None:
+        both = [fitted(m) for m in (mask, mask[:, ::-1])]
+        costs = tuple(f.cost / max(f.scale * front.ipd_px, 1e-9) for f in both)
+    colours = front.extras.get("colours")
+    found = profile_facing(image, mask, costs, skin=colours[0] if colours else None, given=facing)
+    if found.confidence < SURE:
+        raise InputError(f"cannot tell which way the side photo faces ({found.describe()})", where=where,
+                         fix="say where the nose points in the side photo: --side-facing left or --side-facing right")
+    flip = found.facing == "right"
+    if flip:
+        # Everything below works on the photo turned nose-left; segmenting it again there
+        # (rather than mirroring this mask) makes a mirrored photo give exactly mirrored points.
+        image = np.ascontiguousarray(image[:, ::-1])
+        mask = head_mask(image)
     dist = outline_distance(mask)
-    try:
-        fit = fit_profile(mask, front.extras["landmarks"], front.points["11.5"][1], front.ipd_px,
-                          image.shape[0] / front_height, dist)
-    except ValueError:
-        raise InputError("the side photo's silhouette has no profile", where=where,
-                         fix="give a profile photo showing the whole head, from the top of the hair to the chin") from None
-    return fit, {"image": image, "mask": mask, "flipped": flip, "distance": dist}
+    fit = fitted(mask, dist)
+    return fit, {"image": image, "mask": mask, "flipped": flip, "distance": dist, "facing": found}
 
 
 #: An ear is taken as found when the gradient along its outline is this many times the
@@ -239,7 +259,8 @@ def _stretch(points: dict, ids, prof: np.ndarray, anchor_pred: np.ndarray, ancho
 
 
 def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
-                where: str = "side photo", mask: np.ndarray | None = None) -> tuple[ViewPoints, str]:
+                where: str = "side photo", mask: np.ndarray | None = None,
+                facing: str | None = None) -> tuple[ViewPoints, str]:
     """Feature points on a profile photo (see the module docstring).
 
     Parameters
@@ -254,6 +275,9 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
         The photo's name, for messages.
     mask : (H, W) bool, optional
         The head's silhouette in the photo as given (:func:`head_mask` when omitted).
+    facing : {"left", "right"}, optional
+        Where the nose points (see :func:`register_profile`); the one found is in the
+        points' ``extras["facing_found"]``.
 
     Returns
     -------
@@ -268,10 +292,11 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
     from .side_parts import EAR_OUTLINE, ear_box, eye_white, lip_region
 
     h, w = image.shape[:2]
-    fit, ctx = register_profile(image, front, front_height, where, mask)
+    fit, ctx = register_profile(image, front, front_height, where, mask, facing)
     image, mask, flip = ctx["image"], ctx["mask"], ctx["flipped"]
     side = "R" if flip else "L"
     out = ViewPoints(mask=mask)
+    out.extras["facing_found"] = ctx["facing"]
     ipd = fit.scale * front.ipd_px
     out.ipd_px = ipd
     out.extras.update(profile_fit=fit, facing="right" if flip else "left")
