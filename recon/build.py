@@ -402,6 +402,10 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
     say("reading the photos and annotations")
     shape = load_pair(shape_path, front, side)
     texture = load_pair(texture_from) if texture_from is not None else None
+    from .landmarks.roles import check_roles
+
+    for pair in (shape, texture) if texture is not None else (shape,):
+        check_roles(pair.front, pair.side, pair.paths.get("front", "front photo"), pair.paths.get("side", "side photo"))
     focal_from = "given" if focal_px is not None else None
     if focal_px is None:
         focal_px, note = photos_focal_px(shape.paths["front"], shape.paths["side"])

@@ -29,7 +29,6 @@ from mpeg4.errors import InputError
 
 from .front import ViewPoints
 from .mapping import SIDE_MAP_FILE, apply_mapping, load_mapping
-from .models import face_landmarks
 from .profile import ProfileFit, fit_profile, outline_distance
 from .silhouette import head_mask, row_extents
 
@@ -96,16 +95,14 @@ def _apex(mask: np.ndarray, y_top: float, depth: float) -> float:
 
 def _checked(image: np.ndarray, where: str, mask: np.ndarray | None = None) -> np.ndarray:
     """The side photo's head silhouette, once the photo is seen to be a profile with a head."""
+    from .roles import FRONTAL, turn
+
     h, w = image.shape[:2]
-    faces = face_landmarks(image)
-    if faces:
-        lm = faces[0]
-        nose, left_edge, right_edge = lm[1, 0], lm[234, 0], lm[454, 0]
-        a = ((right_edge - nose) - (nose - left_edge)) / max(right_edge - left_edge, 1e-9)
-        if abs(a) < 0.3:
-            raise InputError("the side photo shows the face from the front", where=where,
-                             fix="give a profile photo (the head turned 90 degrees, one ear towards the camera); "
-                                 "if the two photos were given the other way round, swap them")
+    a = turn(image)
+    if a is not None and abs(a) < FRONTAL:
+        raise InputError("the side photo shows the face from the front", where=where,
+                         fix="give a profile photo (the head turned 90 degrees, one ear towards the camera); "
+                             "if the two photos were given the other way round, swap them")
     mask = head_mask(image) if mask is None else np.asarray(mask, bool)
     if mask.sum() < 0.01 * h * w:
         raise InputError("no head found in the side photo (the person could not be told from the background)",

@@ -195,3 +195,20 @@ def test_photos_from_a_phone_are_turned_upright(tmp_path):
     np.testing.assert_allclose(read_photo(tmp_path / "phone.jpg").astype(float).mean(),
                                np.asarray(img).astype(float).mean(), atol=1.0)
     assert read_photo(tmp_path / "phone.jpg").shape == np.asarray(img).shape
+
+
+# --- photos checked against their roles, even with --fdp ------------------------------------
+
+@pytest.mark.parametrize("case", ["same photo twice", "swapped"])
+def test_photos_that_do_not_fit_their_roles_are_refused_with_annotations_given(tmp_path, case):
+    pytest.importorskip("mediapipe")
+    from mpeg4 import InputError
+    from recon.build import run_build
+    from recon.example import EXAMPLE_DIR
+
+    front, side = EXAMPLE_DIR / "front.jpg", EXAMPLE_DIR / "side.jpg"
+    photos = (front, front) if case == "same photo twice" else (side, front)
+    why = "the same picture" if case == "same photo twice" else "swap them"
+    with pytest.raises(InputError, match=why):
+        run_build(*photos, EXAMPLE_DIR / "example.fdp.json", tmp_path / "out")
+    assert not (tmp_path / "out" / "head.glb").exists()

@@ -49,7 +49,7 @@ def test_an_unsure_profile_is_refused_naming_the_fix(monkeypatch):
         points = {"11.5": np.array([0.0, 10.0])}
         ipd_px = 40.0
 
-    monkeypatch.setattr(side, "face_landmarks", lambda image: [])
+    monkeypatch.setattr("recon.landmarks.roles.turn", lambda image: None)
     monkeypatch.setattr(side, "fit_profile", lambda *a, **k: side.ProfileFit(1.0, 0.0, np.zeros(2), 1.0))
     with pytest.raises(InputError, match="--side-facing left or --side-facing right"):
         side.register_profile(img, Front(), 240, "p.jpg", mask)
