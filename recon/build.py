@@ -32,6 +32,7 @@ import numpy as np
 
 from mpeg4.errors import InputError
 from mpeg4.head import Head
+from mpeg4.io import read_fdp_json
 
 from .shape.calibrate import DEFAULT_IPD_MM
 from .texture.cameras import FittedCamera, fit_camera
@@ -81,7 +82,6 @@ def load_pair(fdp_path: str | os.PathLike, front: str | os.PathLike | None = Non
     front, side : path, optional
         The photos; by default the ``image`` each view records, relative to the file.
     """
-    from mpeg4.io import read_fdp_json
 
     fdp_path = os.fspath(fdp_path)
     fdp = read_fdp_json(fdp_path)
@@ -348,13 +348,87 @@ def _write_bundle(result: BuildResult, shape: PhotoPair, texture: PhotoPair | No
     return paths
 
 
+#: Where ``recon build`` without annotations writes the points it detected, in its output.
+DETECTED_NAME = "annotations.fdp.json"
+
+
+def detect_annotations(front: str | os.PathLike, side: str | os.PathLike, path: str | os.PathLike,
+                       detect: Callable | None = None, side_facing: str | None = None,
+                       where: str = "recon build") -> Path:
+    """Feature points detected on two photos, written to ``path`` marked unreviewed.
+
+    Parameters
+    ----------
+    front, side : path
+        The photos.
+    path : path
+        Where the annotations go (``"reviewed": false`` in their metadata, so that the
+        build drops points whose heights disagree instead of failing; see
+        :func:`recon.shape.fit.fit_head`). A file there that a person reviewed (saved
+        by ``recon annotate``) is never replaced: that is an error saying to build with it.
+    detect : callable, optional
+        ``detect(front, side) -> FdpFile``; :func:`recon.landmarks.detect` by default.
+    side_facing : {"left", "right"}, optional
+        Where the nose points in the side photo (:func:`recon.landmarks.detect`).
+    where : str
+        Who asks, for the messages.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    from mpeg4.errors import require_file
+    from mpeg4.io import write_fdp_json
+    from mpeg4.io.fdp_json import FdpFile
+
+    path = Path(path)
+    if path.exists():
+        try:
+            reviewed = read_fdp_json(path).metadata.get("reviewed") is not False
+        except InputError:
+            reviewed = True  # not ours to replace
+        if reviewed:
+            raise InputError(f"{path} holds points a person placed or checked", where=where,
+                             fix=f"build with them: recon build {front} {side} --fdp {path} -o ...; or move the "
+                                 "file away to detect the points again")
+    front, side = require_file(front, "front photo"), require_file(side, "side photo")
+    if detect is None:
+        from .landmarks import detector
+
+        detect, why = detector()
+        if detect is None:
+            raise InputError(f"no annotations were given and {why}", where=where,
+                             fix="mark the points with recon annotate FRONT SIDE and build with --fdp F.fdp.json")
+        found = detect(front, side, side_facing=side_facing)
+    else:
+        found = detect(front, side)
+    if not isinstance(found, FdpFile):
+        raise TypeError(f"automatic detection returned {type(found).__name__}, not an FdpFile")
+    for name, photo in (("front", front), ("side", side)):
+        if name not in found.views or not found.views[name].points:
+            raise InputError(f"automatic detection found no feature points on the {name} photo", where=photo,
+                             fix="check that the photo shows the face, or mark the points with recon annotate")
+        found.views[name].image = photo
+    found.metadata = dict(found.metadata, reviewed=False, source="automatic detection (recon.landmarks)")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_fdp_json(path, found)
+    return path
+
+
+def correction_hint(front, side, fdp_path) -> str:
+    """How to correct detected points and build again."""
+    return (f"check and correct them with: recon annotate {front} {side} --fdp {fdp_path}, then build again with "
+            f"--fdp {fdp_path}")
+
+
 def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, fdp: str | os.PathLike | None,
               out_dir: str | os.PathLike, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
               method: str = "dffd", texture_size: int = DEFAULT_TEXTURE_SIZE, atlas: bool = False,
               shape_from: str | os.PathLike | None = None, texture_from: str | os.PathLike | None = None,
               keep_lighting: bool = False, progress: Callable[[str], None] | None = None, result: list | None = None,
               created: str | None = None, provenance: dict | None = None,
-              height_tol_mm: float = 8.0) -> dict[str, Path]:
+              height_tol_mm: float = 8.0, side_facing: str | None = None) -> dict[str, Path]:
     """``recon build``: write the textured head bundle.
 
     Parameters
@@ -363,7 +437,9 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
         The photos (with ``fdp``); None to take them from the annotation file.
     fdp : path or None
         Annotations of both photos. Give either ``fdp`` or ``shape_from`` (and optionally
-        ``texture_from``).
+        ``texture_from``), or neither with both photos: the points are then detected
+        (:func:`detect_annotations`) and written to ``OUT/annotations.fdp.json``, kept when
+        the build fails, for a person to correct.
     out_dir : path
         The bundle's folder (created). Files of a previous build are replaced only once the
         new ones are complete.
@@ -382,6 +458,8 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
         ``SOURCE_DATE_EPOCH``, for byte-identical ``head.fdp.json`` files across runs).
     provenance : dict, optional
         More entries for the provenance (``recon batch`` adds the manifest row).
+    side_facing : {"left", "right"}, optional
+        Where the nose points in the side photo, for detection.
 
     Returns
     -------
@@ -393,12 +471,43 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
         raise InputError("both --fdp and --shape-from are given", where="recon build",
                          fix="use --fdp for one pair, or --shape-from with --texture-from for two")
     shape_path = fdp if fdp is not None else shape_from
+    if side_facing not in (None, "left", "right"):
+        raise InputError(f"--side-facing {side_facing!r} is neither left nor right", where="recon build",
+                         fix="give --side-facing left (the nose towards the photo's left) or right")
+    detected = None
     if shape_path is None:
-        raise InputError("no annotations given", where="recon build",
-                         fix="give --fdp F.fdp.json (or --shape-from A.fdp.json --texture-from B.fdp.json)")
+        if front is None or side is None:
+            raise InputError("no photos and no annotations given", where="recon build",
+                             fix="give the two photos (recon build FRONT SIDE -o OUT: the points are detected), or "
+                                 "--fdp F.fdp.json")
+        say("detecting the feature points")
+        detected = shape_path = detect_annotations(front, side, Path(out_dir) / DETECTED_NAME,
+                                                   side_facing=side_facing)
+        meta = read_fdp_json(detected).metadata.get("landmarks", {})
+        for warning in meta.get("warnings", []):
+            say(f"warning: {warning}")
+        say(f"the detected points are in {detected} (unreviewed)")
     if texture_from is not None and fdp is not None:
         raise InputError("--texture-from goes with --shape-from, not with --fdp", where="recon build",
                          fix="use --shape-from A.fdp.json --texture-from B.fdp.json")
+    try:
+        paths = _build_into(front, side, shape_path, out_dir, texture_from, ipd_mm, focal_px, method, texture_size,
+                            atlas, keep_lighting, height_tol_mm, say, result, created, provenance, t0)
+    except InputError as e:
+        if detected is None:
+            raise
+        raise InputError(e.what, where=e.where, fix=(e.fix + "; " if e.fix else "")
+                         + "the points were detected automatically and are kept: "
+                         + correction_hint(front, side, detected)) from None
+    if detected is not None:
+        paths["annotations"] = detected
+        say(correction_hint(front, side, detected))
+    return paths
+
+
+def _build_into(front, side, shape_path, out_dir, texture_from, ipd_mm, focal_px, method, texture_size, atlas,
+                keep_lighting, height_tol_mm, say, result, created, provenance, t0) -> dict[str, Path]:
+    """:func:`run_build` once the annotations are known."""
     say("reading the photos and annotations")
     shape = load_pair(shape_path, front, side)
     texture = load_pair(texture_from) if texture_from is not None else None

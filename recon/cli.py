@@ -68,17 +68,23 @@ def build(front: Path = typer.Argument(None, help="Front photo (JPEG/PNG); by de
                                                   "an albedo texture for renderers to light)."),
           shape_from: Path = typer.Option(None, "--shape-from", help="Shape from this annotated pair (*.fdp.json)."),
           texture_from: Path = typer.Option(None, "--texture-from", help="Texture from this annotated pair (*.fdp.json)."),
+          side_facing: str = typer.Option(None, "--side-facing", help="Where the nose points in the side photo "
+                                                                      "(left or right), when detection cannot tell."),
           height_tol: float = typer.Option(8.0, "--height-tol", help="Largest disagreement (mm) of a point's height "
                                                                     "between the photos: reviewed points beyond it "
                                                                     "are an error, detected ones are left out and "
                                                                     "listed.")
           ) -> None:
-    """Shape, texture and export in one step: head.glb, head.obj + head.mtl + texture.png, head.fdp.json, preview.png."""
+    """Shape, texture and export in one step: head.glb, head.obj + head.mtl + texture.png, head.fdp.json, preview.png.
+
+    Without --fdp the points are detected on the two photos and written to OUT/annotations.fdp.json
+    (unreviewed), kept when the build fails: correct them with recon annotate FRONT SIDE --fdp
+    OUT/annotations.fdp.json and build again with --fdp."""
     from .build import run_build
 
     paths = run_build(front, side, fdp, out, ipd_mm=ipd, focal_px=focal, method=method, texture_size=texture_size,
                       atlas=atlas, shape_from=shape_from, texture_from=texture_from, keep_lighting=keep_lighting,
-                      progress=_say, height_tol_mm=height_tol)
+                      progress=_say, height_tol_mm=height_tol, side_facing=side_facing)
     for kind, path in paths.items():
         typer.echo(f"{kind}: {path}")
 

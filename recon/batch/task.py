@@ -25,6 +25,8 @@ from pathlib import Path
 
 from mpeg4.errors import InputError
 
+from recon.build import DETECTED_NAME, correction_hint, detect_annotations
+
 from .manifest import ManifestRow
 
 __all__ = ["RECORD_NAME", "NO_LANDMARKS", "build_person"]
@@ -93,31 +95,16 @@ def _cpu_seconds() -> float:
 
 def _detected_annotations(row: ManifestRow, folder: Path, detect: Callable | None) -> str:
     """Annotations by automatic detection, written into the head's folder; their path."""
-    from mpeg4.errors import require_file
-    from mpeg4.io import write_fdp_json
-    from mpeg4.io.fdp_json import FdpFile
-
     detect = detect or _landmark_detector()
     if detect is None:
         raise InputError(NO_LANDMARKS, where=row.where,
                          fix="mark the points (recon annotate FRONT SIDE) and give the fdp.json in the fdp "
                              "column, or install automatic detection (recon.landmarks)")
-    front, side = require_file(row.front, "front photo"), require_file(row.side, "side photo")
     try:
-        found = detect(front, side)
+        path = detect_annotations(row.front, row.side, folder / DETECTED_NAME, detect=detect, where=row.where)
     except ImportError as e:  # recon.landmarks is there but its models are not (mediapipe)
         raise InputError(NO_LANDMARKS, where=row.where, fix=f"{e}; or mark the points (recon annotate FRONT SIDE) "
                                                             f"and give the fdp.json in the fdp column") from None
-    if not isinstance(found, FdpFile):
-        raise TypeError(f"automatic detection returned {type(found).__name__}, not an FdpFile")
-    for name, photo in (("front", front), ("side", side)):
-        if name not in found.views or not found.views[name].points:
-            raise InputError(f"automatic detection found no feature points on the {name} photo", where=photo,
-                             fix="check that the photo shows the face, or mark the points with recon annotate")
-        found.views[name].image = photo
-    found.metadata = dict(found.metadata, reviewed=False, source="automatic detection (recon.landmarks)")
-    path = folder / "annotations.fdp.json"
-    write_fdp_json(path, found)
     return os.fspath(path)
 
 
@@ -183,9 +170,15 @@ def _build_here(row: ManifestRow, out_dir: str, defaults: dict, created: str | N
         tmp = None
     except InputError as e:
         text = str(e)
-        if tmp is not None and row.fdp is None and row.shape_from is None:  # name what was detected, not a temp file
-            text = text.replace(os.fspath(tmp / "annotations.fdp.json"),
-                                f"the points detected automatically on {row.front} and {row.side}")
+        detected = None if tmp is None else tmp / DETECTED_NAME
+        if detected is not None and detected.exists() and row.fdp is None and row.shape_from is None:
+            # Keep what was detected beside the report, for a person to correct.
+            kept = out / f"{row.id}.{DETECTED_NAME}"
+            shutil.copyfile(detected, kept)
+            text = text.replace(os.fspath(detected), os.fspath(kept))
+            if os.fspath(kept) not in text:
+                text += f" (the detected points are kept in {kept}: {correction_hint(row.front, row.side, kept)})"
+            record["annotations"] = os.fspath(kept)
         record.update(error=text, error_kind="input")
     except Exception as e:  # one row's bug must not cost the others; keep it visible in the report
         record.update(error=f"{type(e).__name__}: {e}", error_kind="internal", traceback=traceback.format_exc())

@@ -297,3 +297,20 @@ def test_manifest_formats_and_the_command_line(tmp_path):
     assert r.returncode == 2 and "line 2" in r.stderr and "Traceback" not in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
 
+
+
+def test_a_failed_row_keeps_its_detected_points(people, tmp_path):
+    folder, _, good = people
+    row = {k: v for k, v in good[0].items() if k != "fdp"}
+    manifest = tmp_path / "auto.jsonl"
+    manifest.write_text(json.dumps({**row, "front": str(folder / row["front"]), "side": str(folder / row["side"])})
+                        + "\n")
+    (parsed,) = read_manifest(manifest)
+    defaults = {"ipd_mm": 63.0, "focal_px": None, "method": "dffd", "texture_size": 256, "atlas": False}
+    truth = read_fdp_json(folder / good[0]["fdp"])
+    truth.views["front"].points["9.3"] = truth.views["front"].points["9.3"] + [0.0, 80.0]  # a core point off
+    record = build_person(parsed, str(tmp_path), defaults, detect=lambda front, side: truth)
+    kept = tmp_path / f"{parsed.id}.annotations.fdp.json"
+    assert record["status"] == "failed" and record["annotations"] == str(kept), record
+    assert "recon annotate" in record["error"] and str(kept) in record["error"]
+    assert read_fdp_json(kept).metadata["reviewed"] is False and not (tmp_path / parsed.id).exists()

@@ -212,3 +212,35 @@ def test_photos_that_do_not_fit_their_roles_are_refused_with_annotations_given(t
     with pytest.raises(InputError, match=why):
         run_build(*photos, EXAMPLE_DIR / "example.fdp.json", tmp_path / "out")
     assert not (tmp_path / "out" / "head.glb").exists()
+
+
+# --- recon build FRONT SIDE -o OUT: the points detected, kept, correctable ---------------------
+
+def test_build_without_annotations_detects_writes_and_keeps_the_points(tmp_path):
+    pytest.importorskip("mediapipe")
+    from mpeg4 import InputError
+    from mpeg4.io import read_fdp_json, write_fdp_json
+    from recon.build import run_build
+    from recon.example import EXAMPLE_DIR
+
+    front, side = EXAMPLE_DIR / "front.jpg", EXAMPLE_DIR / "side.jpg"
+    said = []
+    paths = run_build(front, side, None, tmp_path / "a", texture_size=256, progress=said.append)
+    found = read_fdp_json(paths["annotations"])
+    assert paths["annotations"] == tmp_path / "a" / "annotations.fdp.json" and found.metadata["reviewed"] is False
+    assert (tmp_path / "a" / "head.glb").exists()
+    assert any("recon annotate" in m and "--fdp" in m for m in said)
+    head_meta = read_fdp_json(tmp_path / "a" / "head.fdp.json").metadata
+    assert head_meta["provenance"]["inputs"]["shape"]["fdp"]["path"].endswith("annotations.fdp.json")
+    # A failed build keeps the detected points and says how to correct them.
+    with pytest.raises(InputError, match="detected automatically and are kept.*recon annotate"):
+        run_build(front, side, None, tmp_path / "b", texture_size=256, height_tol_mm=0.001)
+    assert read_fdp_json(tmp_path / "b" / "annotations.fdp.json").metadata["reviewed"] is False
+    assert not (tmp_path / "b" / "head.glb").exists()
+    # Points a person reviewed are never replaced by a new detection.
+    found.metadata["reviewed"] = True
+    write_fdp_json(tmp_path / "b" / "annotations.fdp.json", found)
+    with pytest.raises(InputError, match="a person placed or checked"):
+        run_build(front, side, None, tmp_path / "b", texture_size=256)
+    with pytest.raises(InputError, match="neither left nor right"):
+        run_build(front, side, None, tmp_path / "c", side_facing="up")
