@@ -126,6 +126,43 @@ class BuildResult:
     timings: dict[str, float]
 
 
+def _fit_view_camera(points3d, view, name: str, focal_px, where: str, cal, unreviewed: bool, say) -> FittedCamera:
+    """The photo's camera from its points, without those the calibration dropped from it.
+
+    For unreviewed (detected) points, a point the camera cannot explain (off by more than
+    the share of the IPD :func:`_check_cameras` allows) is dropped too, the worst first,
+    unless it is one of the face's core points, and listed in ``cal.dropped``.
+    """
+    from .shape.calibrate import CORE_GROUPS, _NOT_CORE
+    from mpeg4.catalogue import FEATURE_POINTS
+
+    gone = {i for i, d in cal.dropped.items() if d["view"] in (name, "both")}
+    own = {(FEATURE_POINTS[i].mirror or i) if name == "side" and i not in view.points else i for i in gone}
+    pixels = {i: p for i, p in view.points.items() if i not in gone and i not in own}
+    while True:
+        cam = fit_camera(points3d, pixels, view.width, view.height, focal_px=focal_px, where=where)
+        if not unreviewed:
+            return cam
+        limit = _MAX_RESIDUAL_SHARE * _view_scale(view)
+        worst = max((i for i in cam.residual_px
+                     if not (FEATURE_POINTS[i].group in CORE_GROUPS and i not in _NOT_CORE)),
+                    key=lambda i: cam.residual_px[i], default=None)
+        if cam.rms_px <= limit or worst is None or cam.residual_px[worst] <= limit:
+            return cam
+        say(f"left out {worst} on the {name} photo: the camera misses it by {cam.residual_px[worst]:.0f} px")
+        cal.dropped[worst] = {"view": name, "camera_px": round(float(cam.residual_px[worst]), 1)}
+        del pixels[worst]
+
+
+def _view_scale(view) -> float:
+    """Pixels of the IPD a photo shows (the pupils apart, or the eye to the ear in a profile)."""
+    pts = [view.points[i] for i in ("3.5", "3.6") if i in view.points]
+    if len(pts) == 2:
+        return float(np.linalg.norm(pts[0] - pts[1]))
+    b = [view.points[i] for i in ("10.9", "10.10", "10.7", "10.8") if i in view.points]
+    return float(np.linalg.norm(pts[0] - b[0])) if pts and b else max(view.width or 1, view.height or 1) * 0.1
+
+
 def _check_cameras(cams: dict[str, FittedCamera], pair: PhotoPair, where: str) -> None:
     """Refuse annotations that no plausible front/side camera explains (a profile passed
     as the front photo, points labelled on the wrong photo)."""
@@ -142,13 +179,7 @@ def _check_cameras(cams: dict[str, FittedCamera], pair: PhotoPair, where: str) -
                              f"looking {what}", where=f"{where}, views.{name}",
                              fix=f"check that the {name} photo shows the face {what} and that its points are "
                                  f"marked on it (not on the other photo)")
-        view = pair.fdp.views[name]
-        pts = [view.points[i] for i in ("3.5", "3.6") if i in view.points]
-        scale = np.linalg.norm(pts[0] - pts[1]) if len(pts) == 2 else None
-        if scale is None:  # the side photo shows one pupil: use the eye to the ear
-            a = [view.points[i] for i in ("3.5", "3.6") if i in view.points]
-            b = [view.points[i] for i in ("10.9", "10.10", "10.7", "10.8") if i in view.points]
-            scale = np.linalg.norm(a[0] - b[0]) if a and b else max(view.width or 1, view.height or 1) * 0.1
+        scale = _view_scale(pair.fdp.views[name])
         rms = cams[name].rms_px
         if rms > _MAX_RESIDUAL_SHARE * scale:
             worst = sorted(cams[name].residual_px.items(), key=lambda kv: -kv[1])[:3]
@@ -214,17 +245,18 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     tex_head = head
     if texture is not None:
         say("fitting the generic head to the texture's photos")
-        tex_head, _ = fit_head(texture.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
+        tex_head, tex_cal = fit_head(texture.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
                                where=texture.paths.get("fdp", "fdp.json"), height_tol_mm=height_tol_mm)
     times["shape"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     pts = tex_head.fp_positions()
     where = tex_pair.paths.get("fdp", "fdp.json")
+    tex_cal = cal if texture is None else tex_cal
     cams = {}
     for name in ("front", "side"):
         view = tex_pair.fdp.views[name]
-        cams[name] = fit_camera(pts, view.points, view.width, view.height, focal_px=focal_px,
-                                where=f"{where}, views.{name}")
+        cams[name] = _fit_view_camera(pts, view, name, focal_px, f"{where}, views.{name}", tex_cal,
+                                      tex_pair.fdp.metadata.get("reviewed") is False, say)
     _check_cameras(cams, tex_pair, where)
     skin = texture_skin(tex_head, tex_pair.front, tex_pair.side, cams["front"], cams["side"], size=texture_size,
                         blend=blend, delight=not keep_lighting, progress=say)
@@ -514,7 +546,9 @@ def _build_into(front, side, shape_path, out_dir, texture_from, ipd_mm, focal_px
     from .landmarks.roles import check_roles
 
     for pair in (shape, texture) if texture is not None else (shape,):
-        check_roles(pair.front, pair.side, pair.paths.get("front", "front photo"), pair.paths.get("side", "side photo"))
+        for warning in check_roles(pair.front, pair.side, pair.paths.get("front", "front photo"),
+                                   pair.paths.get("side", "side photo")):
+            say(f"warning: {warning}")
     focal_from = "given" if focal_px is not None else None
     if focal_px is None:
         focal_px, note = photos_focal_px(shape.paths["front"], shape.paths["side"])

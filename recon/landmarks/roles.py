@@ -13,12 +13,16 @@ import numpy as np
 
 from mpeg4.errors import InputError
 
-__all__ = ["FRONTAL", "turn", "check_roles"]
+__all__ = ["FRONTAL", "TURNED", "turn", "check_roles"]
 
 #: A face whose nose tip is off its edges' middle by at most this share of the face's
 #: width is seen from the front; the side photo's test uses the same bound (a profile's
 #: nose is at an edge, or the face mesh finds no face at all).
 FRONTAL = 0.3
+#: A front photo whose face is turned further than this (a three-quarter view or a
+#: profile) is refused; between :data:`FRONTAL` and this it is taken with a warning:
+#: booking photos and selfies are often turned a little (about 0.5 at 20 degrees).
+TURNED = 0.75
 
 
 def turn(image: np.ndarray) -> float | None:
@@ -42,7 +46,7 @@ def turn(image: np.ndarray) -> float | None:
 
 
 def check_roles(front: np.ndarray, side: np.ndarray, front_name: str = "front photo",
-                side_name: str = "side photo") -> None:
+                side_name: str = "side photo") -> list[str]:
     """Raise :class:`InputError` when the photos do not fit their roles.
 
     Parameters
@@ -51,6 +55,11 @@ def check_roles(front: np.ndarray, side: np.ndarray, front_name: str = "front ph
         RGB photos as given.
     front_name, side_name : str
         Their names, for the messages.
+
+    Returns
+    -------
+    list of str
+        Warnings: a front photo turned a little (see :data:`TURNED`).
 
     Raises
     ------
@@ -66,7 +75,7 @@ def check_roles(front: np.ndarray, side: np.ndarray, front_name: str = "front ph
     try:
         t_front, t_side = turn(front), turn(side)
     except MediapipeMissing:
-        return
+        return []
     swapped = t_side is not None and abs(t_side) < FRONTAL and (t_front is None or abs(t_front) >= FRONTAL)
     if swapped:
         raise InputError("the side photo shows the face from the front and the front photo does not",
@@ -74,10 +83,14 @@ def check_roles(front: np.ndarray, side: np.ndarray, front_name: str = "front ph
     if t_front is None:
         raise InputError("no face found in the front photo", where=front_name,
                          fix="give a photo of the face from the front, eyes open, the whole face in the picture")
-    if abs(t_front) >= FRONTAL:
+    if abs(t_front) >= TURNED:
         raise InputError(f"the front photo shows the face turned (the nose {abs(t_front):.0%} of the way to the "
                          "face's edge)", where=front_name,
                          fix="give a photo with the face towards the camera")
     if t_side is not None and abs(t_side) < FRONTAL:
         raise InputError("the side photo shows the face from the front", where=side_name,
                          fix="give a profile photo (the head turned 90 degrees, one ear towards the camera)")
+    if abs(t_front) >= FRONTAL:
+        return [f"{front_name}: the face is turned a little (the nose {abs(t_front):.0%} of the way to the face's "
+                "edge); the head's width and the texture's sides suffer"]
+    return []

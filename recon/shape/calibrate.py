@@ -36,6 +36,10 @@ __all__ = ["DEFAULT_IPD_MM", "CORE_GROUPS", "Calibration", "HeightsDisagree", "c
 #: Adult mean interpupillary distance (mm) used when the user gives none.
 DEFAULT_IPD_MM = 63.0
 
+#: Largest nod of the head between the two photos the orthographic calibration takes out,
+#: degrees (people nod a few degrees between a front and a profile photo).
+MAX_NOD_DEG = 20.0
+
 # Rounds of the alternating perspective solution (converges to ~1e-9 m in 5).
 _PERSPECTIVE_ROUNDS = 8
 
@@ -80,10 +84,12 @@ class Calibration:
     dropped: dict[str, dict] = field(default_factory=dict)
 
 
-#: The face's core: eyes, nose, mouth and chin (groups 2, 3, 8, 9). Their heights are
-#: found by the face mesh on both photos; when they disagree the photos or the cameras are
-#: wrong, and dropping points would hide it.
+#: The face's core: eyes, nose, mouth and chin (groups 3, 8, 9 and 2.1-2.10; the jaw's
+#: contour 2.11-2.14 is not: the side photo shows it under the ear and the hair). Their
+#: heights are found by the face mesh on both photos; when they disagree the photos or
+#: the cameras are wrong, and dropping points would hide it.
 CORE_GROUPS = (2, 3, 8, 9)
+_NOT_CORE = ("2.11", "2.12", "2.13", "2.14")
 
 
 class HeightsDisagree(InputError):
@@ -187,7 +193,7 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
                 raise
             res = e.residual_mm
             worst = max(res, key=lambda i: abs(res[i]))
-            if FEATURE_POINTS[worst].group in CORE_GROUPS:
+            if FEATURE_POINTS[worst].group in CORE_GROUPS and worst not in _NOT_CORE:
                 raise HeightsDisagree(e.residual_mm, e.what + f" (after dropping {', '.join(dropped) or 'nothing'})",
                                       where=e.where, fix="the face's core points (eyes, nose, mouth, chin) cannot "
                                                          "disagree by this much on the same face: check that the two "
@@ -197,7 +203,37 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
                               "disagreement_mm": round(float(e.residual_mm[worst]), 1)}
             continue
         cal.dropped = dropped
+        if drop_outliers:
+            _skull_prior(cal, generic)
         return cal
+
+
+#: How far unreviewed points of the skull's outline and the ears may lie from where the
+#: face's points put the generic head's, metres: the spread of skull and ear shapes about
+#: a face of a given size. Hair lies on the skull 5-50 mm thick, and a photo's outline of
+#: the top and back of the head is the hair's, so a point further out is hair (or an ear
+#: found on the hair or the cheek) and is brought back to this bound.
+PRIOR_SLACK = {**{i: 0.012 for i in ("11.4", "11.5", "11.6")},
+               **{i: 0.015 for i in FP_IDS if FEATURE_POINTS[i].group == 10}}
+
+
+def _skull_prior(cal: Calibration, generic: Head) -> None:
+    """Bring unreviewed skull and ear points (:data:`PRIOR_SLACK`) within their bound of the
+    generic head carried by the face's points, recording those moved as ``"skull prior"``."""
+    g = {i: generic.fp_position(i) for i in generic.feature_points}
+    face = [i for i in FP_IDS if FEATURE_POINTS[i].group not in (10, 11) and i in g
+            and cal.source.get(i) not in (None, "generic")]
+    if len(face) < 4:
+        return
+    guess = _generic_guess(g, face, np.array([cal.points[i] for i in face]))
+    for i, slack in PRIOR_SLACK.items():
+        if i not in guess or cal.source.get(i) == "generic":
+            continue
+        d = cal.points[i] - guess[i]
+        n = float(np.linalg.norm(d))
+        if n > slack:
+            cal.points[i] = guess[i] + d * (slack / n)
+            cal.source[i] = "skull prior"
 
 
 def _drop(i: str, front: dict, side: dict, confidence: dict) -> str:
@@ -280,10 +316,12 @@ def _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, he
         sf = ipd / ipd_px
         X = {i: (p[0] - x_mid) * sf for i, p in fu.items()}
         Yf = {i: -p[1] * sf for i, p in fu.items()}
-        a, b, resid = _fit_heights(shared, Yf, side_any, _weights(shared, label, confidence))
-        ss = abs(a)
-        Z = {i: facing * p[0] * ss for i, p in side_any.items()}
-        Ys = {i: a * p[1] + b for i, p in side_any.items()}
+        a, c, b, resid = _fit_heights(shared, Yf, side_any, _weights(shared, label, confidence))
+        ss = float(np.hypot(a, c))
+        # The side photo's plane by a similarity: heights a v + c u + b, depths at right
+        # angles (c = 0 when the head did not nod between the photos).
+        Z = {i: facing * (c * p[1] - a * p[0]) for i, p in side_any.items()}
+        Ys = {i: a * p[1] + c * p[0] + b for i, p in side_any.items()}
         scales = {"front": sf, "side": ss}
     else:
         X, Yf, Z, Ys, resid, scales = _perspective(front, side_any, generic, ipd, focal_px, front_size, side_size,
@@ -379,17 +417,30 @@ def _generic_guess(g: dict, full: list, known: np.ndarray) -> dict:
 
 
 def _fit_heights(shared, Yf, side_any, w):
-    """Straight line from side-photo rows to front heights (metres), weighted by ``w``: a, b,
-    residuals."""
+    """The side photo's plane onto the front's heights (metres), weighted by ``w``: heights
+    ``a v + c u + b`` of side pixels (u, v), a similarity whose angle is the head's nod
+    between the two photos; returns a, c, b and the residuals.
+
+    The nod is kept only when enough points spread in depth to measure it (three or more,
+    spanning a fifth of their height range); otherwise c = 0.
+    """
     v = np.array([side_any[i][1] for i in shared])
+    u = np.array([side_any[i][0] for i in shared])
     y = np.array([Yf[i] for i in shared])
-    A = np.c_[v, np.ones_like(v)]
-    (a, b), *_ = np.linalg.lstsq(A * w[:, None], y * w, rcond=None)
+    c = 0.0
+    if len(shared) >= 3 and np.ptp(u) > 0.2 * max(np.ptp(v), 1e-9):
+        A = np.c_[v, u, np.ones_like(v)]
+        (a, c, b), *_ = np.linalg.lstsq(A * w[:, None], y * w, rcond=None)
+        if abs(np.degrees(np.arctan2(c, -a))) > MAX_NOD_DEG:
+            c = 0.0  # not a nod a person makes between two photos: fit without it
+    if c == 0.0:
+        A = np.c_[v, np.ones_like(v)]
+        (a, b), *_ = np.linalg.lstsq(A * w[:, None], y * w, rcond=None)
     if not a < 0:
         raise InputError("the side photo's heights run the wrong way against the front photo's",
                          where="side view", fix="check that the side photo is upright and its points are the "
                                                 "same as the front photo's")
-    return a, b, {i: float(a * side_any[i][1] + b - Yf[i]) for i in shared}
+    return a, c, b, {i: float(a * side_any[i][1] + c * side_any[i][0] + b - Yf[i]) for i in shared}
 
 
 def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, facing, visible, shared, w):

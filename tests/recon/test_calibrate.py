@@ -197,3 +197,36 @@ def test_fit_head_drops_only_for_unreviewed_points_and_records_them():
     assert head.metadata["fit"]["dropped_points"]["11.2"]["view"] == "both"
     with pytest.raises(InputError, match=r"11\.2 by"):
         fit_head(fdp, focal_px=FOCAL, drop_outliers=False)
+
+
+def test_a_nod_between_the_photos_is_taken_out_of_the_heights():
+    from mpeg4.generic_head import load_generic_head
+
+    generic = load_generic_head()
+    _, views, size = _example_views()
+    base = calibrate(views["front"], views["side"], generic, height_tol_mm=np.inf)
+    # The head nodded 8 degrees in the side photo: every side point turned about the ear.
+    t = np.radians(8.0)
+    rot = np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+    centre = views["side"]["10.9" if "10.9" in views["side"] else "10.1"]
+    nodded = {i: rot @ (p - centre) + centre for i, p in views["side"].items()}
+    cal = calibrate(views["front"], nodded, generic, height_tol_mm=np.inf)
+    worst = max(abs(r) for r in base.height_residual_mm.values())
+    assert max(abs(r) for r in cal.height_residual_mm.values()) < worst + 0.5
+    core = [i for i in FP_IDS if FEATURE_POINTS[i].group in (3, 8, 9)]
+    assert max(np.linalg.norm(cal.points[i] - base.points[i]) for i in core) < 0.0015
+
+
+def test_unreviewed_skull_points_on_the_hair_come_back_to_the_skull():
+    from mpeg4.generic_head import load_generic_head
+    from recon.shape.calibrate import PRIOR_SLACK
+
+    generic = load_generic_head()
+    _, views, size = _example_views()
+    cam = dict(front_size=size["front"], side_size=size["side"], focal_px=FOCAL)
+    ref = calibrate(views["front"], views["side"], generic, **cam, drop_outliers=True)
+    side = dict(views["side"])
+    side["11.6"] = side["11.6"] + [120.0 if side["11.6"][0] > side["9.3"][0] else -120.0, 0.0]  # a ponytail
+    cal = calibrate(views["front"], side, generic, **cam, drop_outliers=True)
+    assert cal.source["11.6"] == "skull prior"
+    assert np.linalg.norm(cal.points["11.6"] - ref.points["11.6"]) < 2 * PRIOR_SLACK["11.6"]

@@ -1,0 +1,263 @@
+"""The automatic route on real photos, measured without 3D ground truth.
+
+For each person (a folder with ``front.*``, ``side.*`` and optionally ``side_other.*``, any
+of jpg, png, tif) it runs what a user runs, ``recon build FRONT SIDE -o OUT`` with no
+annotations, and measures the head against the photos (:mod:`recon.evaluate.real_photos`):
+
+- ``built`` (1, or 0 with the error quoted) and the wall time;
+- ``point_agreement_ipd_pct``: RMS distance of the detected points from the head's points
+  projected by the fitted cameras, % of the interpupillary distance (IPD), per photo;
+- ``profile_line_ipd_pct``: the side photo's face-side outline from the brow to the chin
+  against the rendered head's, mean distance in % IPD;
+- ``silhouette_iou_front``, ``silhouette_iou_side``: the rendered head against the photo's
+  head region (hair counted, below the chin left out);
+- ``heldout_profile_line_ipd_pct``, ``heldout_silhouette_iou``: the same in ``side_other``,
+  a view the build never saw, through a camera fitted to the points detected there;
+- ``identity_distance``: dlib's face-recognition embedding distance (the 128-D ResNet in
+  ``face_recognition_models``) between each photo and the textured head rendered from its
+  camera; ``identity_distance_other_people``: the same between different people's front
+  photos, the baseline a render must beat (the usual same-person threshold is 0.6);
+- ``skin_delta_e``: CIEDE2000 between the photo's median skin colour (cheeks, forehead) and
+  the albedo texture's, rendered unlit from the front camera.
+
+One ``name[person]: value`` line per figure and person, then the medians over people with
+the names above (failed builds count in ``built``; their figures are absent, not zero), and
+a contact sheet (photo beside render, per view and person) under ``test-artifacts/``.
+
+Run: ``python3 benchmarks/real_photos.py [FOLDER ...] [--with-other-sides] [--people N]``
+(default: ``../shared/data/real_photos/pairs``). ``--with-other-sides`` also builds each
+person from ``side_other`` as the side photo.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+DEFAULT = ROOT.parent / "shared" / "data" / "real_photos" / "pairs"
+EXTENSIONS = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
+FIGURES = ("built", "point_agreement_ipd_pct", "profile_line_ipd_pct", "silhouette_iou_front",
+           "silhouette_iou_side", "heldout_profile_line_ipd_pct", "heldout_silhouette_iou", "identity_distance",
+           "identity_distance_other_people", "skin_delta_e")
+
+
+def photo(folder: Path, stem: str) -> Path | None:
+    for ext in EXTENSIONS:
+        for p in (folder / f"{stem}{ext}", folder / f"{stem}{ext.upper()}"):
+            if p.exists():
+                return p
+    return None
+
+
+def people(folders) -> list[tuple[str, Path, Path, Path | None]]:
+    """(name, front, side, side_other) of every person folder under ``folders``."""
+    out = []
+    for folder in folders:
+        for d in sorted(p for p in Path(folder).iterdir() if p.is_dir()):
+            front, side = photo(d, "front"), photo(d, "side")
+            if front and side:
+                out.append((d.name, front, side, photo(d, "side_other")))
+    return out
+
+
+class Recogniser:
+    """dlib's face-recognition embeddings, when dlib and its models are installed."""
+
+    def __init__(self):
+        try:
+            import dlib
+            import face_recognition_models as frm
+        except ImportError as e:
+            self.why = f"{e.name} is not installed (pip install -e '.[bench]')"
+            self.ok = False
+            return
+        self.detector = dlib.get_frontal_face_detector()
+        self.shape = dlib.shape_predictor(frm.pose_predictor_model_location())
+        self.net = dlib.face_recognition_model_v1(frm.face_recognition_model_location())
+        self.ok, self.why = True, None
+
+    def embed(self, image: np.ndarray, box_hint: np.ndarray | None = None) -> np.ndarray | None:
+        """128-D embedding of the largest face (or of the box around ``box_hint`` points)."""
+        import dlib
+
+        image = np.ascontiguousarray(image)
+        if box_hint is not None:
+            lo, hi = box_hint.min(axis=0), box_hint.max(axis=0)
+            pad = 0.15 * (hi - lo)
+            rect = dlib.rectangle(*(int(v) for v in (lo[0] - pad[0], lo[1] - pad[1], hi[0] + pad[0], hi[1] + pad[1])))
+        else:
+            found = self.detector(image, 1)
+            if not found:
+                return None
+            rect = max(found, key=lambda r: r.area())
+        return np.array(self.net.compute_face_descriptor(image, self.shape(image, rect)))
+
+
+def measure(name, front, side, other, out: Path, rec: Recogniser, texture_size: int, say) -> tuple[dict, dict]:
+    """Build one person and measure; returns (figures, pictures for the contact sheet)."""
+    from mpeg4.errors import InputError
+    from mpeg4.io import read_fdp_json
+    from recon.build import run_build
+    from recon.evaluate import real_photos as rp
+    from recon.photos import read_photo
+
+    fig, pics = {}, {}
+    built = []
+    t0 = time.perf_counter()
+    try:
+        run_build(front, side, None, out, texture_size=texture_size, result=built)
+    except InputError as e:
+        fig["built"] = 0
+        fig["error"] = str(e)
+        fig["seconds"] = round(time.perf_counter() - t0, 1)
+        return fig, pics
+    fig["built"] = 1
+    fig["seconds"] = round(time.perf_counter() - t0, 1)
+    res = built[0]
+    head = res.head
+    found = read_fdp_json(out / "annotations.fdp.json")
+    facing = found.metadata.get("landmarks", {}).get("side_facing", {}).get("facing", "left")
+    images = {"front": read_photo(front), "side": read_photo(side)}
+    for view in ("front", "side"):
+        cam = res.cameras[view].camera
+        pts = found.views[view].points
+        ipd = rp.ipd_px(head, cam)
+        mask, albedo = rp.rendered_mask(head, cam, textured=True)
+        region = rp.head_region(images[view])
+        fig[f"point_agreement_{view}_ipd_pct"] = rp.point_agreement(head, cam, pts)
+        chin = pts.get("2.1", [0, images[view].shape[0]])[1]
+        fig[f"silhouette_iou_{view}"] = rp.silhouette_iou(region, mask, chin)
+        if view == "side":
+            fig["profile_line_ipd_pct"] = rp.profile_line(region, mask, pts, facing, ipd)
+        else:
+            fig["skin_delta_e"] = rp.skin_delta_e(images[view], albedo, mask, pts, ipd)
+        lit = render_lit(head, cam)
+        if rec.ok:
+            e_photo = rec.embed(images[view]) if view == "front" else None
+            e_render = rec.embed(lit) if view == "front" else None
+            if e_photo is not None and e_render is not None:
+                fig["identity_distance"] = float(np.linalg.norm(e_photo - e_render))
+                fig["_embedding"] = e_photo
+        pics[view] = (images[view], lit, mask)
+    if other is not None:
+        from recon.landmarks import detect
+        from recon.photos import photos_focal_px
+        from recon.texture.cameras import fit_camera
+
+        try:
+            seen = detect(front, other)
+        except InputError as e:
+            fig["heldout_error"] = str(e)
+        else:
+            img = read_photo(other)
+            pts = seen.views["side"].points
+            focal, _ = photos_focal_px(front, other)
+            cam = fit_camera(head.fp_positions(), pts, img.shape[1], img.shape[0], focal_px=focal,
+                             where=str(other)).camera
+            mask, _ = rp.rendered_mask(head, cam)
+            region = rp.head_region(img)
+            facing_o = seen.metadata["landmarks"]["side_facing"]["facing"]
+            fig["heldout_profile_line_ipd_pct"] = rp.profile_line(region, mask, pts, facing_o, rp.ipd_px(head, cam))
+            fig["heldout_silhouette_iou"] = rp.silhouette_iou(region, mask, pts.get("2.1", [0, img.shape[0]])[1])
+            pics["held-out"] = (img, render_lit(head, cam), mask)
+    return fig, pics
+
+
+def render_lit(head, cam) -> np.ndarray:
+    from mpeg4.preview import head_meshes
+    from mpeg4.render import render
+
+    return render(head_meshes(head), cam, samples=4)
+
+
+def contact_sheet(rows: dict, path: Path, height: int = 240) -> None:
+    """Photo, render and their outlines overlaid, per view, one row per person."""
+    import cv2
+
+    lines = []
+    for name, pics in rows.items():
+        tiles = []
+        for view, (img, lit, mask) in pics.items():
+            scale = height / img.shape[0]
+            size = (int(img.shape[1] * scale), height)
+            over = img.copy()
+            edge = cv2.morphologyEx(mask.astype(np.uint8), cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)) > 0
+            over[cv2.dilate(edge.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0] = (255, 40, 40)
+            for t in (over, lit):
+                tile = cv2.resize(t, size)
+                cv2.putText(tile, f"{name} {view}", (4, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 0), 1)
+                tiles.append(tile)
+        if tiles:
+            lines.append(np.hstack(tiles))
+    if not lines:
+        return
+    width = max(line.shape[1] for line in lines)
+    sheet = np.vstack([np.pad(line, ((0, 0), (0, width - line.shape[1]), (0, 0))) for line in lines])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cv2.imwrite(str(path), cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("folders", nargs="*", type=Path, default=[DEFAULT])
+    ap.add_argument("--with-other-sides", action="store_true", help="also build from side_other as the side photo")
+    ap.add_argument("--people", type=int, default=None, help="at most this many people (a smoke run)")
+    ap.add_argument("--texture-size", type=int, default=1024)
+    ap.add_argument("--sheet", type=Path, default=ROOT / "test-artifacts" / "real_photos_sheet.png")
+    args = ap.parse_args(argv)
+    for f in args.folders:
+        if not f.is_dir():
+            print(f"real_photos: {f} is not a folder of people", file=sys.stderr)
+            return 2
+    todo = people(args.folders)[:args.people]
+    if args.with_other_sides:
+        todo += [(f"{n}+other", fr, o, s) for n, fr, s, o in todo if o is not None]
+    if not todo:
+        print("real_photos: no person folder with front.* and side.* found", file=sys.stderr)
+        return 2
+    rec = Recogniser()
+    if not rec.ok:
+        print(f"# identity not measured: {rec.why}")
+    results, sheet = {}, {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, front, side, other in todo:
+            fig, pics = measure(name, front, side, other, Path(tmp) / name, rec, args.texture_size, print)
+            results[name] = fig
+            sheet[name] = pics
+            for k, v in fig.items():
+                if k.startswith("_"):
+                    continue
+                print(f"{k}[{name}]: {v:.3f}" if isinstance(v, float) else f"{k}[{name}]: {v}", flush=True)
+    embeddings = {n: f["_embedding"] for n, f in results.items() if "_embedding" in f and "+" not in n}
+    names = sorted(embeddings)
+    others = [float(np.linalg.norm(embeddings[a] - embeddings[b])) for i, a in enumerate(names) for b in names[i + 1:]]
+    contact_sheet(sheet, args.sheet)
+    print(f"# contact sheet: {args.sheet}")
+
+    def median(key):
+        vals = [f[key] for f in results.values() if key in f and np.isfinite(f[key])]
+        return float(np.median(vals)) if vals else float("nan")
+
+    built = sum(f["built"] for f in results.values())
+    print(f"built: {built} of {len(results)}")
+    pa = [f[k] for f in results.values() for k in ("point_agreement_front_ipd_pct", "point_agreement_side_ipd_pct")
+          if k in f]
+    print(f"point_agreement_ipd_pct: {np.median(pa) if pa else float('nan'):.3f}")
+    for key in FIGURES[2:-3]:
+        print(f"{key}: {median(key):.3f}")
+    print(f"identity_distance: {median('identity_distance'):.3f}")
+    print(f"identity_distance_other_people: {np.median(others) if others else float('nan'):.3f}")
+    print(f"skin_delta_e: {median('skin_delta_e'):.3f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
