@@ -72,8 +72,7 @@ class Facing:
 
 def silhouette_vote(mask: np.ndarray) -> float:
     """(left bump − right bump) / their sum over the face's rows of a profile silhouette."""
-    from .side import _bumpiness
-    from .silhouette import row_extents
+    from .silhouette import bumpiness, row_extents
 
     left, right = row_extents(mask)
     rows = np.flatnonzero(np.isfinite(left))
@@ -82,7 +81,7 @@ def silhouette_vote(mask: np.ndarray) -> float:
     n = len(rows)
     scale = max(2, int(0.03 * n))
     head = slice(rows[0] + int(0.15 * n), rows[0] + int(0.6 * n))
-    lb, rb = _bumpiness(left[head], scale), _bumpiness(-right[head], scale)
+    lb, rb = bumpiness(left[head], scale), bumpiness(-right[head], scale)
     return float((lb - rb) / (lb + rb)) if lb + rb > 0 else 0.0
 
 

@@ -30,21 +30,9 @@ from mpeg4.errors import InputError
 from .front import ViewPoints
 from .mapping import SIDE_MAP_FILE, apply_mapping, load_mapping
 from .profile import ProfileFit, fit_profile, outline_distance
-from .silhouette import head_mask, row_extents
+from .silhouette import bumpiness, head_mask, row_extents
 
 __all__ = ["facing_of", "detect_side", "register_profile"]
-
-
-def _bumpiness(curve: np.ndarray, scale: int) -> float:
-    """Largest outward bump of a silhouette curve (x per row, outward = smaller x) at ``scale``
-    rows: how far a row stands out of the chord between the rows ``scale`` above and below."""
-    ok = np.isfinite(curve)
-    y = np.flatnonzero(ok)
-    if len(y) < 3 * scale:
-        return 0.0
-    c = np.interp(np.arange(y[0], y[-1] + 1), y, curve[ok])
-    out = 0.5 * (c[:-2 * scale] + c[2 * scale:]) - c[scale:-scale]
-    return float(out.max())
 
 
 def facing_of(mask: np.ndarray) -> str:
@@ -73,8 +61,8 @@ def facing_of(mask: np.ndarray) -> str:
     # Between the crown (whose edge runs level, a "bump" at any scale) and the neck and
     # shoulders: the rows of the face.
     head = slice(rows[0] + int(0.15 * n), rows[0] + int(0.6 * n))
-    lb = _bumpiness(left[head], scale)
-    rb = _bumpiness(-right[head], scale)
+    lb = bumpiness(left[head], scale)
+    rb = bumpiness(-right[head], scale)
     return "left" if lb >= rb else "right"
 
 

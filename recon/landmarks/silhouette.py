@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["head_mask", "row_extents", "largest_component"]
+__all__ = ["head_mask", "row_extents", "largest_component", "bumpiness"]
 
 #: GrabCut works on the photo scaled so that its longer side is at most this (pixels).
 GRABCUT_SIDE = 720
@@ -115,3 +115,15 @@ def row_extents(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     left = np.where(any_, np.argmax(mask, axis=1), np.nan).astype(np.float64)
     right = np.where(any_, mask.shape[1] - 1 - np.argmax(mask[:, ::-1], axis=1), np.nan).astype(np.float64)
     return left, right
+
+
+def bumpiness(curve: np.ndarray, scale: int) -> float:
+    """Largest outward bump of a silhouette curve (x per row, outward = smaller x) at ``scale``
+    rows: how far a row stands out of the chord between the rows ``scale`` above and below."""
+    ok = np.isfinite(curve)
+    y = np.flatnonzero(ok)
+    if len(y) < 3 * scale:
+        return 0.0
+    c = np.interp(np.arange(y[0], y[-1] + 1), y, curve[ok])
+    out = 0.5 * (c[:-2 * scale] + c[2 * scale:]) - c[scale:-scale]
+    return float(out.max())
