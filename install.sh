@@ -23,7 +23,7 @@ fi
 
 npm ci --silent --no-audit --no-fund
 npm run build --silent  # three.js for the annotation page's 3D view, before the package is installed
-python3 -m pip install -q --disable-pip-version-check -e ".[test,landmarks]"
+python3 -m pip install -q --disable-pip-version-check -e ".[test,landmarks,bench]"
 # The face models for automatic feature points (recon.landmarks) are inside the mediapipe
 # wheel; installed without its declared dependencies (see pyproject.toml's landmarks extra).
 python3 -m pip install -q --disable-pip-version-check --no-deps "mediapipe==0.10.21"
