@@ -63,7 +63,8 @@ def _measure(pair, masks, person, data, ipd, focal, size):
                      "side": side_reprojection(r.head, r.skin, pair.side, r.cameras["side"], sm, light=light),
                      "delight_s": r.skin.timings.get("delight", 0.0)}
         if truth is not None:
-            out[kind]["albedo"] = albedo_error(r.head, r.skin, truth, r.cameras["side"], skin_tone=person.skin_rgb)
+            out[kind]["albedo"] = albedo_error(r.head, r.skin, truth, r.cameras["side"], skin_tone=person.skin_rgb,
+                                               albedo_gain=not keep)
         out["seams" if keep else "albedo_seams"] = seam_smoothness(r.skin.layers, r.skin.masks)
     return out
 

@@ -87,6 +87,8 @@ def reprojection(head: Head, photo: np.ndarray, front: FittedCamera, photo_mask:
     region = face_mask(head, front, photo.shape[:2], shrink) & skin_seen
     if photo_mask is not None:
         region &= cv2.erode(photo_mask.astype(np.uint8), np.ones((2 * shrink + 1,) * 2, np.uint8)) > 0
+    if light is not None:
+        image = matched_gain(image, photo, region)
     psnr, ssim = _compare(image, photo, region)
     return Fidelity(psnr, ssim, int(region.sum()))
 
@@ -116,6 +118,22 @@ def _render_skin(head: Head, cam: FittedCamera, vertex_colours: np.ndarray | Non
     gap[both] = np.abs(skin_only[both] - depth[both])
     skin_seen = gap < 1e-4
     return image, cv2.erode(skin_seen.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+
+
+def matched_gain(image: np.ndarray, photo: np.ndarray, region: np.ndarray) -> np.ndarray:
+    """``image`` times the one gain that brings its luma to the photo's over ``region``
+    (the median ratio).
+
+    A de-lit texture is the albedo up to the light's intensity, which no photo tells (the
+    de-lighting keeps the photo's mean skin colour): re-lit with the photo's known light it
+    matches the photo up to that one number, and only what is left is the texture's error.
+    """
+    luma = np.array([0.299, 0.587, 0.114])
+    a = image[region].astype(np.float64) @ luma
+    b = photo[region].astype(np.float64) @ luma
+    ok = a > 4
+    gain = float(np.median(b[ok] / a[ok])) if ok.any() else 1.0
+    return np.clip(np.round(image.astype(np.float64) * gain), 0, 255).astype(np.uint8)
 
 
 def _compare(image: np.ndarray, photo: np.ndarray, region: np.ndarray) -> tuple[float, float]:
@@ -199,6 +217,8 @@ def side_reprojection(head: Head, skin, photo: np.ndarray, side: FittedCamera, p
     region = skin_seen.copy()
     if photo_mask is not None:
         region &= cv2.erode(photo_mask.astype(np.uint8), np.ones((2 * shrink + 1,) * 2, np.uint8)) > 0
+    if light is not None:
+        image = matched_gain(image, photo, region)
     psnr, ssim = _compare(image, photo, region)
     # The cheek and the side layer: rendered as white patches on black, shrunk off their rims.
     facing = _facing(part, side, facing_deg)
@@ -261,7 +281,7 @@ class AlbedoError:
 
 
 def albedo_error(head: Head, skin, truth: np.ndarray, side: FittedCamera, blur_px: float | None = None,
-                 skin_tone: np.ndarray | None = None, tone_tol: float = 45.0) -> AlbedoError:
+                 skin_tone: np.ndarray | None = None, tone_tol: float = 45.0, albedo_gain: bool = False) -> AlbedoError:
     """Compare a built skin texture with the skin's true albedo at its vertices.
 
     Parameters
@@ -279,6 +299,10 @@ def albedo_error(head: Head, skin, truth: np.ndarray, side: FittedCamera, blur_p
     skin_tone : (3,) float, optional
         Only vertices whose true colour is within ``tone_tol`` (RGB distance) of it are
         compared: the skin, not the hair, brows, lips or lashes.
+    albedo_gain : bool
+        Compare up to one gain (the median luma ratio over the face), for a de-lit texture:
+        its level is the photo's mean skin colour, the albedo's only up to the light's
+        intensity (see :func:`matched_gain`).
     """
     from scipy.ndimage import map_coordinates
     from scipy.spatial import cKDTree
@@ -305,6 +329,10 @@ def albedo_error(head: Head, skin, truth: np.ndarray, side: FittedCamera, blur_p
     regions = {"face": ok & np.isin(r, (FRONT, SEEN, MIRRORED)), "front": ok & (r == FRONT) & ~facing,
                "cheek": ok & (r == FRONT) & facing, "side": ok & (r == SEEN), "mirrored": ok & (r == MIRRORED)}
     luma = np.array([0.299, 0.587, 0.114])
+    if albedo_gain and regions["face"].any():
+        a, b = got[regions["face"]] @ luma, want[regions["face"]] @ luma
+        keep = a > 4
+        got = got * (float(np.median(b[keep] / a[keep])) if keep.any() else 1.0)
     d = got - want
     mae = {k: float(np.abs(d[m]).mean()) if m.any() else float("nan") for k, m in regions.items()}
     bias = {k: float((d[m] @ luma).mean()) if m.any() else float("nan") for k, m in regions.items()}

@@ -16,8 +16,14 @@ the photo by the fitted shading.
   shadows falls to the robust weights. Photos are used as they are encoded: a power-law
   encoding keeps albedo × shading a product, so the division holds either way.
 * The fit knows only the scale of albedo × light intensity, not each. The shading is
-  scaled so that its brightest value over the fitted skin is 1: the albedo is the colour a
-  surface shows facing the light squarely (with a white key light, the paint's colour).
+  scaled so that its mean over the fitted skin is 1: the albedo keeps the photo's mean skin
+  colour, and only the light's variation over the face is taken out. (Scaling it to its
+  brightest value instead would make the albedo the colour facing the light squarely, but
+  one bright spot — a highlight on glasses, a shiny forehead — then brightens the whole
+  face: a dark skin came out pale.)
+* The result is judged before it is used (:func:`judge`): an implausible light (most of
+  the skin in deep shadow) or an albedo that leaves the photo's range (skin burnt out to
+  white where the photo was not) falls back to the photo as it is, with the reason.
 * Where the shading falls below :data:`MIN_SHADING` of that (grazing light, deep shadow)
   it is held there, so that noise is not blown up; :attr:`Lighting.trust` says where the
   division is to be trusted.
@@ -41,10 +47,17 @@ from mpeg4.errors import InputError
 from mpeg4.head import Head
 from mpeg4.render import Camera, RenderMesh, render, vertex_normals
 
-__all__ = ["Lighting", "MIN_SHADING", "sh_basis", "normal_image", "fit_mask", "fit_lighting", "delight_photo"]
+__all__ = ["Lighting", "MIN_SHADING", "MIN_MEAN_SHADING", "MAX_BURNT", "sh_basis", "normal_image", "fit_mask", "fit_lighting",
+           "judge", "delight_photo"]
 
 #: Shading (share of its brightest) below which the division is not trusted and held.
 MIN_SHADING = 0.25
+#: The fitted shading's mean over the skin, as a share of its brightest, below which the
+#: light is implausible (most of the face in deep shadow: the fit followed dark skin or
+#: hair, not light).
+MIN_MEAN_SHADING = 0.3
+#: Largest share of the skin that de-lighting may burn out to white where the photo was not.
+MAX_BURNT = 0.02
 
 _LUMA = np.array([0.299, 0.587, 0.114])
 
@@ -58,10 +71,12 @@ class Lighting:
     coefficients : (9,) float64
         Of :func:`sh_basis` for the photo's luma (grey levels), camera frame.
     peak : float
-        The brightest fitted luma over the fitted skin; shading is the harmonics over it.
+        The brightest fitted luma over the fitted skin.
     shading : (H, W) float32
-        The shading at every pixel of the head (1 elsewhere), clamped to
-        [:data:`MIN_SHADING`, 1.25].
+        The shading at every pixel of the head (1 elsewhere): the harmonics over ``peak``,
+        clamped to [:data:`MIN_SHADING`, 1.25], then divided by ``mean``.
+    mean : float
+        The clamped shading's mean over the fitted skin, as a share of ``peak``.
     trust : (H, W) bool
         Pixels of the head whose shading is at least :data:`MIN_SHADING` (unclamped).
     fit_pixels : int
@@ -74,6 +89,8 @@ class Lighting:
     trust: np.ndarray
     fit_pixels: int
     inlier_share: float
+    mean: float = 1.0
+    fallback: str | None = None
 
     @property
     def direction(self) -> np.ndarray:
@@ -225,8 +242,32 @@ def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, 
     full = cv2.GaussianBlur(np.where(head_mask, full, 0).astype(np.float32), (0, 0), smooth_px) / \
         np.maximum(cv2.GaussianBlur(m, (0, 0), smooth_px), 1e-3)
     trust = head_mask & (full >= MIN_SHADING)
-    shading = np.where(head_mask, np.clip(full, MIN_SHADING, 1.25), 1.0).astype(np.float32)
-    return Lighting(c, peak, shading, trust, int(sel.sum()), float(np.mean(w > 0)))
+    clamped = np.clip(full, MIN_SHADING, 1.25)
+    skin = head_mask & (weight > 0.5)
+    mean = float(clamped[skin].mean()) if skin.any() else 1.0
+    shading = np.where(head_mask, clamped / mean, 1.0).astype(np.float32)
+    return Lighting(c, peak, shading, trust, int(sel.sum()), float(np.mean(w > 0)), mean)
+
+
+def judge(photo: np.ndarray, albedo: np.ndarray, light: Lighting, skin: np.ndarray) -> str | None:
+    """Why a de-lit photo must not be used, or None when it may.
+
+    Parameters
+    ----------
+    photo, albedo : (H, W, 3) uint8
+        The photo and the photo divided by ``light``'s shading.
+    light : Lighting
+    skin : (H, W) bool
+        The skin the light was fitted to.
+    """
+    if light.mean < MIN_MEAN_SHADING:
+        return (f"the fitted light leaves most of the face in deep shadow (mean shading {light.mean:.2f} of its "
+                "brightest), which is not a light a photo is taken in")
+    if skin.any():
+        burnt = (albedo[skin].max(axis=1) >= 254) & (photo[skin].max(axis=1) < 250)
+        if burnt.mean() > MAX_BURNT:
+            return f"taking the light out would burn {burnt.mean():.0%} of the skin out to white"
+    return None
 
 
 def delight_photo(head: Head, photo: np.ndarray, camera: Camera, mask: np.ndarray | None = None
@@ -246,10 +287,15 @@ def delight_photo(head: Head, photo: np.ndarray, camera: Camera, mask: np.ndarra
     Returns
     -------
     albedo : (H, W, 3) uint8
-        The photo divided by the fitted shading where the head is, unchanged elsewhere.
+        The photo divided by the fitted shading where the head is, unchanged elsewhere;
+        the photo as it is when :func:`judge` refuses the result.
     lighting : Lighting
+        ``fallback`` says why the photo was kept, or None.
     """
     normals, head_mask, weight = normal_image(head, camera, fit_mask(head) if mask is None else mask)
     light = fit_lighting(photo, normals, head_mask, weight)
-    out = photo.astype(np.float32) / light.shading[..., None]
-    return np.clip(np.round(out), 0, 255).astype(np.uint8), light
+    out = np.clip(np.round(photo.astype(np.float32) / light.shading[..., None]), 0, 255).astype(np.uint8)
+    light.fallback = judge(photo, out, light, head_mask & (weight > 0.5))
+    if light.fallback is not None:
+        return photo.copy(), light
+    return out, light

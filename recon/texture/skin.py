@@ -260,6 +260,8 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
         t = time.perf_counter()
         for key, photo in list(photos.items()):
             photos[key], lighting[key] = delight_photo(head, photo, cams[key].camera)
+            if lighting[key].fallback:
+                say(f"warning: the {key} photo keeps its light: {lighting[key].fallback}")
         times["delight"] = time.perf_counter() - t
 
     say(f"warping the photos into a {size}x{size} texture")
