@@ -83,3 +83,18 @@ def test_the_albedo_texture_gives_back_the_paint_where_the_lit_one_is_dark(ict_n
     assert alb.mae["face"] < 14.0 and lit.mae["face"] > 25.0, (alb.mae, lit.mae)
     assert abs(alb.cheek_minus_front) < 8.0 and abs(lit.cheek_minus_front) > 12.0, (alb.bias, lit.bias)
     assert alb.left_right < 11.0 and lit.left_right > 18.0, (alb.left_right, lit.left_right)
+
+
+def test_a_de_lit_photo_is_judged_before_it_is_used():
+    from recon.texture.delight import Lighting, judge
+
+    photo = np.full((20, 20, 3), 90, np.uint8)
+    skin = np.zeros((20, 20), bool)
+    skin[5:15, 5:15] = True
+    fine = Lighting(np.zeros(9), 100.0, np.ones((20, 20), np.float32), skin, 100, 1.0, mean=0.8)
+    assert judge(photo, photo, fine, skin) is None
+    dark = Lighting(np.zeros(9), 100.0, np.ones((20, 20), np.float32), skin, 100, 1.0, mean=0.2)
+    assert "deep shadow" in judge(photo, photo, dark, skin)
+    burnt = photo.copy()
+    burnt[5:8, 5:15] = 255  # 30 % of the skin white where the photo was not
+    assert "burn 30% of the skin" in judge(photo, burnt, fine, skin)
