@@ -37,7 +37,6 @@ PUT      /api/fdp            as above; each point is snapped to the surface and 
 
 from __future__ import annotations
 
-import json
 import os
 import secrets
 import socket
@@ -55,6 +54,7 @@ from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from mpeg4.errors import InputError
+from mpeg4.io.strict_json import loads
 
 from .mesh_session import MeshSession, is_mesh
 from .session import AnnotationSession, SaveConflict
@@ -168,9 +168,9 @@ async def _json_body(request: Request):
     """The request's JSON body; :class:`_MalformedJSON` with the parser's message."""
     raw = await request.body()
     try:
-        return json.loads(raw)
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise _MalformedJSON(f"malformed JSON: {e}") from None
+        return loads(raw, where="request body")
+    except InputError as e:  # syntax, nesting deeper than any page sends, a key twice
+        raise _MalformedJSON(f"malformed JSON: {e.what}") from None
 
 
 def _views_of(body, allowed=("views",)) -> object:
