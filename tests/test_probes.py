@@ -7,8 +7,11 @@ interrupted between two steps. What must come back is what the README promises: 
 naming the file, the place and the fix (an :class:`~mpeg4.errors.InputError`, exit status 2
 at the command line), nothing half-written, nothing lost.
 
-Probes of the annotation server (locks, connections, the token) and of a build's bundle
-are beside them, in ``tests/recon/test_annotate_probes.py`` and ``tests/recon/test_build.py``.
+Probes of the annotation server (two processes saving at once, idle connections, the
+token, a swapped photo) and of a build killed between two steps are beside the modules'
+tests: ``tests/recon/test_annotate_probes.py``, ``tests/recon/test_publish.py``; the memory
+probes (huge photos, a 3.1-million-triangle mesh) in ``tests/recon/test_build.py`` and
+``tests/recon/test_mark.py``.
 """
 
 import json
@@ -78,6 +81,15 @@ def test_deep_json_gives_one_line_at_the_command_line(tmp_path):
     timeline.write_text('{"actions": ' + "[" * 200000 + "]" * 200000 + "}")
     _one_line(_cli("fmc", "animate", ROOT / "data" / "generic_head" / "generic_head.glb", timeline, "-o", tmp_path / "a"),
               "t.json: JSON nested 200001 levels deep")
+    # fmc info on an OBJ whose fdp.json beside it is nested; on a nested .gltf.
+    (tmp_path / "h.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "h.fdp.json").write_text("[" * 200000 + "]" * 200000)
+    _one_line(_cli("fmc", "info", tmp_path / "h.obj"), "h.fdp.json: JSON nested 200000 levels deep")
+    (tmp_path / "deep.gltf").write_text('{"asset": {"version": "2.0"}, "extras": ' + "[" * 200000 + "]" * 200000 + "}")
+    _one_line(_cli("fmc", "info", tmp_path / "deep.gltf"), "deep.gltf")
+    # recon annotate with a nested annotation file: refused before it serves anything.
+    _one_line(_cli("recon", "annotate", ROOT / "data" / "example" / "front.jpg", ROOT / "data" / "example" / "side.jpg",
+                   "--fdp", deep, "--no-browser", "--no-detect"), "deep.fdp.json: JSON nested 200000 levels deep")
 
 
 def test_a_key_given_twice_is_refused(tmp_path):
