@@ -160,10 +160,13 @@ def test_huge_numbers_in_a_fap_file_are_refused_with_the_line(text, message):
 
 
 def test_fmc_play_refuses_a_fap_value_of_1e300_in_one_line_and_writes_nothing(tmp_path):
+    from mpeg4.io import save_head
+
+    head = tmp_path / "fat.glb"  # a head with animation tables: before, it played 1e300 into NaN weights
+    save_head(load_generic_head(with_fat=True), head)
     stream = tmp_path / "big.fap"
     stream.write_text(f"2.1 big 25 2\n{MASK_3}\n0 100\n{MASK_3}\n1 1e300\n")
-    run = _cli("fmc", "play", ROOT / "data" / "generic_head" / "generic_head.glb", stream, "-o", tmp_path / "out",
-               "--no-preview")
+    run = _cli("fmc", "play", head, stream, "-o", tmp_path / "out", "--no-preview")
     _one_line(run, "big.fap, line 5: frame 1: FAP 3 (open_jaw) is 1e300")
     assert not (tmp_path / "out" / "animation.glb").exists()
 
