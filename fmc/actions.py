@@ -30,7 +30,6 @@ FAP numbers or names to values in FAPU (AU for rotations). Defaults: intensity 1
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass
@@ -39,11 +38,13 @@ import numpy as np
 
 from mpeg4.catalogue import EXPRESSIONS, VISEMES, fap
 from mpeg4.errors import InputError, require_file
-from mpeg4.io.fap import FapStream
+from mpeg4.io.fap import FPS_RANGE, FapStream
 
 __all__ = ["ENVELOPES", "Action", "envelope", "blend", "actions_stream", "read_timeline", "Timeline"]
 
 ENVELOPES = ("linear", "smooth", "exponential")
+#: Most frames a timeline file may ask for (over 11 hours at 25 fps).
+MAX_FRAMES = 1_000_000
 
 
 @dataclass
@@ -212,18 +213,25 @@ def _action(d: dict, where: str) -> Action:
 
 def read_timeline(path) -> Timeline:
     """Read a timeline JSON file (see the module docstring)."""
+    from mpeg4.io.strict_json import read_json
+
     path = require_file(path, "timeline file")
-    try:
-        with open(path, encoding="utf-8") as f:
-            data = json.load(f)
-    except json.JSONDecodeError as e:
-        raise InputError(f"not valid JSON: {e.msg} at line {e.lineno}, column {e.colno}", where=path) from None
+    data = read_json(path, "timeline file")
     if not isinstance(data, dict) or not isinstance(data.get("actions"), list):
         raise InputError("expected an object with an 'actions' list", where=path)
     actions = [_action(a, f"{path}, actions[{k}]") for k, a in enumerate(data["actions"])]
     end = max((a.start + a.duration for a in actions), default=0.0)
-    duration = float(data.get("duration", end))
-    fps = float(data.get("fps", 25.0))
-    if not fps > 0:
-        raise InputError(f"fps {fps} is not positive", where=f"{path}, fps")
+    for k, a in enumerate(actions):
+        if not all(math.isfinite(x) for x in (a.start, a.duration, a.intensity, a.weight)):
+            raise InputError("start, duration, intensity and weight must be finite", where=f"{path}, actions[{k}]")
+    try:
+        duration, fps = float(data.get("duration", end)), float(data.get("fps", 25.0))
+    except (TypeError, ValueError):
+        raise InputError("duration and fps must be numbers", where=path) from None
+    lo, hi = FPS_RANGE
+    if not lo <= fps <= hi:
+        raise InputError(f"fps {fps:g} is outside {lo:g}..{hi:g}", where=f"{path}, fps", fix="e.g. 25")
+    if not 0 <= duration * fps <= MAX_FRAMES:
+        raise InputError(f"a duration of {duration:g} s at {fps:g} fps is not 0..{MAX_FRAMES} frames",
+                         where=f"{path}, duration", fix="give the timeline's length in seconds")
     return Timeline(actions, duration, fps, name=os.path.splitext(os.path.basename(path))[0])

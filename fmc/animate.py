@@ -21,6 +21,7 @@ from scipy.spatial.transform import Rotation
 from mpeg4.errors import InputError
 from mpeg4.fat import _key, fap_unit, fat_to_morph_targets, morph_weights
 from mpeg4.head import Head
+from mpeg4.io.fap import check_values
 from mpeg4.io.gltf import GlbAnimation
 
 __all__ = ["stream_animation", "render_preview_frames", "write_gif", "write_video", "write_animation", "play_stream",
@@ -38,6 +39,7 @@ def stream_animation(head: Head, stream) -> tuple[GlbAnimation, list[str]]:
     if head.fat is None or not len(head.fat):
         raise InputError("the head has no Facial Animation Tables to play",
                          fix="author them first: fmc author HEAD -o HEAD_WITH_FAT.glb")
+    check_values(stream)  # a stream made in code is checked as a file is
     held = stream.held()
     if held.n_frames == 0:
         raise InputError("the stream has no frames", fix="give a .fap file with at least one frame")

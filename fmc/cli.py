@@ -116,8 +116,8 @@ def animate(head: Path = typer.Argument(..., help="Head with animation tables (.
 
 #: The cloning's options, shared with the ``fmc`` command's clone onto any mesh (chain.cli).
 ANTIALIAS_OPTION = typer.Option(
-    None, "--antialias", help="Radius of the anti-aliasing disc in the alignment space (0: none; default, when the "
-                              "target is sparser than the source: 0.04 of each target vertex's mean edge length there).")
+    0.0, "--antialias", help="Radius of an anti-aliasing disc in the alignment space (default 0: none; a sparse "
+                             "target needs none, see benchmarks/clone_antialiasing.py).")
 ALIGNMENT_OPTION = typer.Option("surface", "--alignment", help="How the points between the feature points follow "
                                                                "them: surface (bi-harmonic over each mesh) or affine "
                                                                "(over the feature-point triangles).")

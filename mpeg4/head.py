@@ -66,8 +66,10 @@ class Part:
             raise InputError(f"triangles have shape {self.triangles.shape}, expected (M, 3)", where=where)
         if self.triangles.size and (self.triangles.min() < 0 or self.triangles.max() >= len(self.vertices)):
             raise InputError(f"a triangle index is outside 0..{len(self.vertices) - 1}", where=where)
-        if not np.isfinite(self.vertices).all():
-            raise InputError("vertices contain NaN or infinity", where=where)
+        bad = np.flatnonzero(~np.isfinite(self.vertices).all(axis=1))
+        if len(bad):
+            raise InputError(f"vertex {int(bad[0])} (of {len(bad)} such) has a NaN or infinite coordinate", where=where,
+                             fix="export the mesh again from the tool that made it, or delete those vertices")
         if self.uv is not None:
             self.uv = np.ascontiguousarray(self.uv, dtype=np.float64)
             if self.uv.shape != (len(self.vertices), 2):

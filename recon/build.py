@@ -13,16 +13,16 @@ topology.
 and writes the bundle — ``head.glb``, ``head.obj`` + ``head.mtl`` + ``texture.png``,
 ``head.fdp.json`` (3D feature points, their texture coordinates, FAPU, the annotations and
 the provenance: inputs, options, version) and ``preview.png`` (renders beside the input
-photos). Everything is written into a temporary folder first and moved into place file by
-file, so a failed or interrupted run leaves the previous bundle as it was.
+photos). The bundle appears whole or not at all (:func:`recon.publish.publish`): written in
+a hidden folder, which then takes the output folder's place in one step, or, where the
+output folder holds other files, is moved in once complete (a run killed meanwhile is
+completed by the next); a failed or interrupted run leaves the previous bundle as it was.
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
-import shutil
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -37,7 +37,8 @@ from mpeg4.io import read_fdp_json
 from .shape.calibrate import DEFAULT_IPD_MM
 from .texture.cameras import FittedCamera, fit_camera
 from .shape.fit import attach_photo_sizes, fit_head, require_views
-from .photos import check_photo, photos_focal_px, read_photo
+from .publish import publish
+from .photos import MAX_PHOTO_PIXELS, check_photo, photo_scale, photo_size, photos_focal_px, read_photo, view_at_size
 
 __all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "run_build", "bundle_fdp", "build_time",
            "preview_with_photos", "DEFAULT_TEXTURE_SIZE"]
@@ -60,19 +61,32 @@ class PhotoPair:
     ----------
     front, side : (H, W, 3) uint8
     fdp : mpeg4.io.fdp_json.FdpFile
-        With ``front`` and ``side`` views; their sizes match the photos.
+        With ``front`` and ``side`` views; their sizes and points match the photos as read.
     paths : dict of str to str
         ``front``, ``side`` and ``fdp`` as given (for provenance and errors).
+    scale : float
+        The photos' size as read over their size in the files (below 1 when they were over
+        :data:`recon.photos.MAX_PHOTO_PIXELS`); focal lengths in the files' pixels are
+        multiplied by it.
+    views : dict of str to ViewAnnotation, optional
+        The annotations as the file gives them, in the files' pixels (``fdp.views`` when
+        None); what the bundle records.
     """
 
     front: np.ndarray
     side: np.ndarray
     fdp: object
     paths: dict[str, str] = field(default_factory=dict)
+    scale: float = 1.0
+    views: dict | None = None
+
+    @property
+    def given_views(self) -> dict:
+        return self.fdp.views if self.views is None else self.views
 
 
 def load_pair(fdp_path: str | os.PathLike, front: str | os.PathLike | None = None,
-              side: str | os.PathLike | None = None) -> PhotoPair:
+              side: str | os.PathLike | None = None, max_pixels: int = MAX_PHOTO_PIXELS) -> PhotoPair:
     """Read an annotation file and its two photos.
 
     Parameters
@@ -81,6 +95,9 @@ def load_pair(fdp_path: str | os.PathLike, front: str | os.PathLike | None = Non
         The ``*.fdp.json`` with ``front`` and ``side`` views.
     front, side : path, optional
         The photos; by default the ``image`` each view records, relative to the file.
+    max_pixels : int
+        Photos larger than this are read smaller, both by one factor
+        (:func:`recon.photos.photo_scale`), and the points with them.
     """
 
     fdp_path = os.fspath(fdp_path)
@@ -97,12 +114,19 @@ def load_pair(fdp_path: str | os.PathLike, front: str | os.PathLike | None = Non
             if not p.is_absolute():
                 p = Path(fdp_path).resolve().parent / p
         paths[name] = os.fspath(p)
-    images = {n: read_photo(p, f"{n} photo") for n, p in paths.items()}
-    for n, im in images.items():
-        check_photo(im, paths[n])
-    attach_photo_sizes(fdp, {n: (im.shape[1], im.shape[0]) for n, im in images.items()}, fdp_path, paths)
+    sizes = {n: photo_size(p, f"{n} photo") for n, p in paths.items()}
+    for n, size in sizes.items():
+        check_photo(size, paths[n])
+    attach_photo_sizes(fdp, sizes, fdp_path, paths)
+    scale = photo_scale(sizes.values(), max_pixels)
+    images = {n: read_photo(p, f"{n} photo", scale) for n, p in paths.items()}
+    given = None
+    if scale < 1:
+        given = dict(fdp.views)
+        for n, im in images.items():
+            fdp.views[n] = view_at_size(fdp.views[n], im.shape[1], im.shape[0])
     paths["fdp"] = fdp_path
-    return PhotoPair(images["front"], images["side"], fdp, paths)
+    return PhotoPair(images["front"], images["side"], fdp, paths, scale, given)
 
 
 @dataclass
@@ -203,7 +227,8 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     texture : PhotoPair, optional
         Those the texture comes from (the same pair by default).
     ipd_mm, focal_px, method
-        See :func:`recon.shape.fit.fit_head` (they apply to both pairs).
+        See :func:`recon.shape.fit.fit_head` (they apply to both pairs; ``focal_px`` in the
+        photo files' pixels, scaled with each pair's photos).
     texture_size : int
         Side of the square skin texture, pixels.
     atlas : bool
@@ -234,7 +259,10 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     times = {}
     t0 = time.perf_counter()
     say("fitting the generic head to the feature points")
-    head, cal = fit_head(shape.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
+    def focal(pair):
+        return None if focal_px is None else focal_px * pair.scale
+
+    head, cal = fit_head(shape.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal(shape), method=method,
                          where=shape.paths.get("fdp", "fdp.json"), height_tol_mm=height_tol_mm)
     if cal.dropped:
         say(f"left out {len(cal.dropped)} detected points whose heights disagree between the photos by more than "
@@ -245,8 +273,9 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     tex_head = head
     if texture is not None:
         say("fitting the generic head to the texture's photos")
-        tex_head, tex_cal = fit_head(texture.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
-                               where=texture.paths.get("fdp", "fdp.json"), height_tol_mm=height_tol_mm)
+        tex_head, tex_cal = fit_head(texture.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal(texture),
+                                     method=method, where=texture.paths.get("fdp", "fdp.json"),
+                                     height_tol_mm=height_tol_mm)
     times["shape"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     pts = tex_head.fp_positions()
@@ -255,7 +284,7 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     cams = {}
     for name in ("front", "side"):
         view = tex_pair.fdp.views[name]
-        cams[name] = _fit_view_camera(pts, view, name, focal_px, f"{where}, views.{name}", tex_cal,
+        cams[name] = _fit_view_camera(pts, view, name, focal(tex_pair), f"{where}, views.{name}", tex_cal,
                                       tex_pair.fdp.metadata.get("reviewed") is False, say)
     _check_cameras(cams, tex_pair, where)
     skin = texture_skin(tex_head, tex_pair.front, tex_pair.side, cams["front"], cams["side"], size=texture_size,
@@ -319,7 +348,7 @@ def bundle_fdp(head: Head, shape: PhotoPair, texture: PhotoPair | None, options:
     from mpeg4.io import fdp_from_head
 
     fdp = fdp_from_head(head)
-    fdp.views = shape.fdp.views
+    fdp.views = shape.given_views
     inputs = {"shape": {k: {"path": v, "sha256": _sha256(v)} for k, v in shape.paths.items()}}
     if texture is not None:
         inputs["texture"] = {k: {"path": v, "sha256": _sha256(v)} for k, v in texture.paths.items()}
@@ -473,8 +502,8 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
         (:func:`detect_annotations`) and written to ``OUT/annotations.fdp.json``, kept when
         the build fails, for a person to correct.
     out_dir : path
-        The bundle's folder (created). Files of a previous build are replaced only once the
-        new ones are complete.
+        The bundle's folder (created). A previous bundle is replaced whole, only once the
+        new one is complete (:func:`recon.publish.publish`); other files there are kept.
     ipd_mm, focal_px, method, texture_size, atlas, keep_lighting, height_tol_mm
         See :func:`build_head`. Without ``focal_px``, the focal length the photos record
         in their EXIF (:func:`recon.photos.photos_focal_px`), else orthographic cameras.
@@ -561,18 +590,11 @@ def _build_into(front, side, shape_path, out_dir, texture_from, ipd_mm, focal_px
                "height_tol_mm": height_tol_mm,
                "texture_size": texture_size, "keep_lighting": keep_lighting,
                "atlas": atlas, "shape_texture_separation": texture is not None}
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=".build-", dir=out))
-    try:
-        written = _write_bundle(res, shape, texture, options, tmp, say, created, provenance)
-        final = {}
-        for key, p in written.items():
-            if p.exists():
-                os.replace(p, out / p.name)
-                final[key] = out / p.name
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+    def write(folder: Path) -> dict[str, Path]:
+        written = _write_bundle(res, shape, texture, options, folder, say, created, provenance)
+        return {key: p for key, p in written.items() if p.exists()}
+
+    final = publish(out_dir, write)
     if result is not None:
         result.append(res)
     say(f"done in {time.perf_counter() - t0:.1f} s (shape {res.timings['shape']:.1f} s, texture "

@@ -6,6 +6,12 @@ user saw are pixels of the array. :func:`check_photo` refuses photos too small t
 a head from. :func:`exif_focal_px` and :func:`photos_focal_px` read the lens's focal
 length the camera recorded, so that close-up photos are calibrated in perspective without
 the user knowing their focal length in pixels.
+
+Photos larger than :data:`MAX_PHOTO_PIXELS` are read smaller (:func:`photo_scale`,
+:func:`read_photo` with ``scale``): a 2048² texture cannot use more, and a build's memory
+grows with the photos' pixels (a 12000 × 9000 photo took 9.2 GB at full size). A JPEG is
+decoded at the reduced size directly (its DCT scaling), so the full size is never held in
+memory; the points marked on the photo follow (:func:`view_at_size`).
 """
 
 from __future__ import annotations
@@ -16,10 +22,14 @@ import numpy as np
 
 from mpeg4.errors import InputError, require_file
 
-__all__ = ["MIN_PHOTO_PX", "read_photo", "photo_size", "check_photo", "exif_focal_px", "photos_focal_px"]
+__all__ = ["MIN_PHOTO_PX", "MAX_PHOTO_PIXELS", "read_photo", "decode_photo", "photo_size", "photo_scale",
+           "view_at_size", "check_photo", "exif_focal_px", "photos_focal_px"]
 
 #: Shortest side (pixels) a photo needs for a texture worth having.
 MIN_PHOTO_PX = 256
+#: Most pixels a photo is processed at (8 megapixels, 3264 × 2448); larger photos are read
+#: smaller, both photos of a pair by the same factor.
+MAX_PHOTO_PIXELS = 8_000_000
 #: Diagonal of a 35 mm film frame (36 × 24 mm), millimetres: what "35 mm equivalent"
 #: focal lengths are relative to.
 FILM_DIAGONAL_MM = 43.2666
@@ -32,35 +42,82 @@ _FOCAL_MM, _PLANE_X_RES, _PLANE_UNIT, _PIXEL_X = 0x920A, 0xA20E, 0xA210, 0xA002
 _UNIT_MM = {2: 25.4, 3: 10.0, 4: 1.0, 5: 1e-3}
 
 
-def _open(path: str | os.PathLike, kind: str):
+def _open(source, where: str, scale: float = 1.0, load: bool = True):
+    """The image of a path or of bytes, as displayed, ``scale`` times its size (a JPEG
+    decoded at the nearest power-of-two reduction above it, then resampled by area)."""
+    import io
+
     from PIL import Image, ImageOps, UnidentifiedImageError
 
-    path = require_file(path, kind)
     try:
-        im = Image.open(path)
-        im.load()
+        im = Image.open(io.BytesIO(source) if isinstance(source, (bytes, bytearray)) else source)
+        orientation = im.getexif().get(0x0112, 1)
+        size = im.size if orientation not in (5, 6, 7, 8) else im.size[::-1]
+        target = (max(1, round(size[0] * scale)), max(1, round(size[1] * scale)))
+        if scale < 1:
+            stored = target if orientation not in (5, 6, 7, 8) else target[::-1]
+            im.draft("RGB", stored)  # JPEG only: decode at 1/2, 1/4 or 1/8 where that still covers it
+        if load:
+            im.load()
+    except Image.DecompressionBombError:
+        raise InputError(f"the image claims more than {2 * Image.MAX_IMAGE_PIXELS} pixels, too many to read safely",
+                         where=where, fix="give a photo of a sensible size (a few tens of megapixels at most)") from None
     except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as e:
-        raise InputError(f"not an image this tool can read ({e.__class__.__name__})", where=path,
+        raise InputError(f"not an image this tool can read ({e.__class__.__name__})", where=where,
                          fix="give a JPEG or PNG photo") from None
-    return ImageOps.exif_transpose(im)
+    if not load:
+        return im
+    im = ImageOps.exif_transpose(im)
+    if im.size != target:
+        im = im.convert("RGB").resize(target, Image.Resampling.BOX)
+    return im
 
 
 def photo_size(path: str | os.PathLike, kind: str = "photo") -> tuple[int, int]:
-    """(width, height) in pixels of a photo as displayed (EXIF orientation applied)."""
-    with _open(path, kind) as im:
-        return im.size
+    """(width, height) in pixels of a photo as displayed (EXIF orientation applied), from
+    its header (the pixels are not decoded)."""
+    path = require_file(path, kind)
+    with _open(path, path, load=False) as im:
+        orientation = im.getexif().get(0x0112, 1)
+        return im.size if orientation not in (5, 6, 7, 8) else im.size[::-1]
 
 
-def read_photo(path: str | os.PathLike, kind: str = "photo") -> np.ndarray:
+def photo_scale(sizes, max_pixels: int = MAX_PHOTO_PIXELS) -> float:
+    """The factor (at most 1) that brings the largest of ``sizes`` ((width, height) pairs)
+    to ``max_pixels``: one factor for the photos of a pair, so that one focal length in
+    pixels still serves both."""
+    largest = max(w * h for w, h in sizes)
+    return min(1.0, float(np.sqrt(max_pixels / largest))) if largest > 0 else 1.0
+
+
+def read_photo(path: str | os.PathLike, kind: str = "photo", scale: float = 1.0) -> np.ndarray:
     """(H, W, 3) uint8 RGB of a photo as displayed (EXIF orientation applied, alpha and
-    palette flattened)."""
-    with _open(path, kind) as im:
+    palette flattened), ``scale`` (at most 1) times its size, each side rounded."""
+    path = require_file(path, kind)
+    with _open(path, path, scale) as im:
         return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
 
 
-def check_photo(image: np.ndarray, where: str, min_px: int = MIN_PHOTO_PX) -> None:
-    """Refuse a photo whose shorter side is under ``min_px`` pixels."""
-    h, w = image.shape[:2]
+def decode_photo(data: bytes, where: str, kind: str = "photo") -> np.ndarray:
+    """As :func:`read_photo`, from the bytes of the file (``where`` names it in errors)."""
+    with _open(bytes(data), where) as im:
+        return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
+
+
+def view_at_size(view, width: int, height: int):
+    """A copy of a :class:`mpeg4.io.fdp_json.ViewAnnotation` whose points are carried onto
+    the same photo at ``width`` × ``height`` pixels (pixel centres map onto pixel centres)."""
+    from mpeg4.io.fdp_json import ViewAnnotation
+
+    sx, sy = width / view.width, height / view.height
+    points = {i: (np.asarray(p, float) + 0.5) * (sx, sy) - 0.5 for i, p in view.points.items()}
+    return ViewAnnotation(view.image, int(width), int(height), points, dict(view.confidence))
+
+
+def check_photo(image: np.ndarray | tuple[int, int], where: str, min_px: int = MIN_PHOTO_PX) -> None:
+    """Refuse a photo (an image, or its (width, height)) whose shorter side is under
+    ``min_px`` pixels."""
+    w, h = image if isinstance(image, tuple) else image.shape[1::-1]
     if min(h, w) < min_px:
         raise InputError(f"the photo is only {w}x{h} pixels", where=where,
                          fix=f"use a photo at least {min_px} pixels on its shorter side (the head should fill "

@@ -2,13 +2,27 @@
 
 Each notebook is executed in a fresh kernel (``scripts/make_gallery.py`` runs them the same
 way), its time printed in the run's "notebooks" section; every GLB it writes passes the
-Khronos validator; every picture it keeps is compared with ``docs/gallery/`` with a
-tolerance, never byte for byte: the same libraries on another processor, or with another
-number of threads, rasterise edges and round colours differently (:func:`picture_difference`).
+Khronos validator; every picture it keeps is compared with ``docs/gallery/`` pixel by pixel,
+with a tolerance that rounding cannot break and a real change does.
+
+Two machines with the same libraries (``gallery.json`` records the OpenGL renderer and the
+libraries that rasterise and encode) do not draw byte for byte alike: another CPU takes
+other SIMD paths through the rasteriser, the resampling and the blending. Measured between
+the gallery and a machine of the same kind with OpenCV 5.1 where the gallery had 5.0 (the
+machine's rounding and a minor version at once; 1 and 2 OpenMP threads drew identically
+there): at most 0.87 % of a picture's pixels differ, by at most 20 grey levels,
+scattered (the largest mean over a 7x7 window is 5.9 grey levels, the mean over the picture
+0.011). A real change is not scattered: a 10x10 detail moved by 3 px raises some 7x7 window's
+mean to 79 grey levels or more in every gallery picture, a picture moved by one pixel to 128,
+the whole picture brightened by 2 grey levels its mean to 2. So a picture matches when no 7x7
+window differs by more than :data:`LOCAL_TOLERANCE` on average and the whole by no more than
+:data:`MEAN_TOLERANCE`; where the libraries differ (fonts and encoders change), by no more
+than :data:`OTHER_LIBRARIES_TOLERANCE` on average, the section saying why.
 """
 
 import hashlib
 import importlib.util
+import json
 from pathlib import Path
 
 import numpy as np
@@ -20,15 +34,16 @@ make_gallery = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(make_gallery)
 
 NOTEBOOKS = make_gallery.notebooks()
-#: Pictures are compared at a quarter of their size (4 × 4 blocks averaged), where a
-#: rasteriser's sub-pixel edge shifts and rounding shrink below a grey level or two while
-#: a changed face, curve or label still moves whole blocks. Bounds in grey levels (0-255):
-#: the blocks' mean absolute difference, and the difference that 999 blocks in 1000 stay
-#: under. A head drawn with another expression or turned by a few degrees moves far more
-#: than 0.1 % of a figure's blocks by more than this.
-BLOCK = 4
-MEAN_TOLERANCE = 1.0
-PEAK_TOLERANCE = 24.0
+#: Largest mean difference over any 7x7 window, grey levels (the largest channel difference
+#: of each pixel): 2.7 times the most two machines' rounding gave, a sixth of the least a
+#: moved detail gives.
+LOCAL_TOLERANCE = 16.0
+#: Largest mean difference over the picture, grey levels: 9 times the most rounding gave.
+MEAN_TOLERANCE = 0.1
+#: When the libraries differ from the gallery's: largest mean difference per picture.
+OTHER_LIBRARIES_TOLERANCE = 2.0
+#: Side of the window, pixels.
+WINDOW = 7
 
 
 def _ict_present() -> bool:
@@ -61,51 +76,36 @@ def test_every_gallery_picture_is_listed_and_linked_from_the_readme():
         assert (make_gallery.NOTEBOOK_DIR / entry["notebook"]).exists(), entry["notebook"]
 
 
-def picture_difference(x: np.ndarray, y: np.ndarray, block: int = BLOCK) -> tuple[float, float]:
-    """Mean and 99.9th-percentile absolute difference of two (H, W, 3) uint8 pictures,
-    grey levels, over ``block`` × ``block`` averages."""
-    h, w = (x.shape[0] // block) * block, (x.shape[1] // block) * block
-
-    def blocks(img):
-        return img[:h, :w].astype(np.float64).reshape(h // block, block, w // block, block, -1).mean(axis=(1, 3))
-
-    d = np.abs(blocks(x) - blocks(y))
-    return float(d.mean()), float(np.percentile(d, 99.9))
-
-
-def _compare(fresh: Path, kept: Path) -> tuple[str, float, float]:
-    """What differs ('' when the pictures agree within what drawing on another machine
-    changes), and the mean and peak block differences."""
+def picture_difference(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """(mean, largest 7x7 window mean) of the per-pixel largest channel difference of two
+    (H, W, 3) uint8 pictures, grey levels."""
     import cv2
 
-    x = cv2.imread(str(fresh), cv2.IMREAD_COLOR)
-    y = cv2.imread(str(kept), cv2.IMREAD_COLOR)
+    d = np.abs(x.astype(np.int16) - y.astype(np.int16)).max(axis=2).astype(np.float32)
+    local = cv2.blur(d, (WINDOW, WINDOW), borderType=cv2.BORDER_CONSTANT)
+    return float(d.mean()), float(local.max())
+
+
+def _compare(fresh: Path, kept: Path, same_libraries: bool = True) -> str:
+    """'' when the pictures agree as they should; otherwise what differs."""
+    a, b = fresh.read_bytes(), kept.read_bytes()
+    if a == b:
+        return ""
+    import cv2
+
+    x = cv2.imdecode(np.frombuffer(a, np.uint8), cv2.IMREAD_COLOR)
+    y = cv2.imdecode(np.frombuffer(b, np.uint8), cv2.IMREAD_COLOR)
     if x.shape != y.shape:
-        return f"is {x.shape[1]}x{x.shape[0]} instead of {y.shape[1]}x{y.shape[0]}", np.inf, np.inf
-    mean, peak = picture_difference(x, y)
-    if mean > MEAN_TOLERANCE or peak > PEAK_TOLERANCE:
-        return f"differs by {mean:.2f} grey levels on average, {peak:.1f} at the 99.9th percentile", mean, peak
-    return "", mean, peak
-
-
-def test_the_picture_comparison_forgives_rasterising_and_catches_a_change():
-    # What another processor does: edges shifted by a pixel here and there, colours rounded
-    # the other way. What a real change does: a region of the picture drawn differently.
-    rng = np.random.default_rng(7)
-    picture = np.zeros((480, 640, 3), np.uint8)
-    for k in range(40):
-        x0, y0 = rng.integers(0, 600), rng.integers(0, 440)
-        picture[y0:y0 + rng.integers(5, 60), x0:x0 + rng.integers(5, 60)] = rng.integers(0, 256, 3)
-    shifted = picture.copy()
-    rows = rng.random(480) < 0.1
-    shifted[rows] = np.roll(picture[rows], 1, axis=1)  # a one-pixel edge shift on 10 % of the rows
-    rounded = np.clip(shifted.astype(np.int16) + rng.integers(-1, 2, shifted.shape), 0, 255).astype(np.uint8)
-    mean, peak = picture_difference(picture, rounded)
-    assert mean <= MEAN_TOLERANCE and peak <= PEAK_TOLERANCE, (mean, peak)
-    changed = picture.copy()
-    changed[200:240, 300:350] = 255 - changed[200:240, 300:350]  # 0.65 % of the picture redrawn
-    mean, peak = picture_difference(picture, changed)
-    assert peak > PEAK_TOLERANCE, (mean, peak)
+        return f"is {x.shape[1]}x{x.shape[0]} instead of {y.shape[1]}x{y.shape[0]}"
+    mean, local = picture_difference(x, y)
+    if not same_libraries:
+        return f"differs by {mean:.2f} grey levels on average" if mean > OTHER_LIBRARIES_TOLERANCE else ""
+    if local > LOCAL_TOLERANCE:
+        ys, xs = np.unravel_index(np.argmax(np.abs(x.astype(np.int16) - y).max(axis=2)), x.shape[:2])
+        return f"differs by {local:.1f} grey levels over a {WINDOW}x{WINDOW} window (near x={xs}, y={ys})"
+    if mean > MEAN_TOLERANCE:
+        return f"differs by {mean:.3f} grey levels on average"
+    return ""
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
@@ -135,13 +135,61 @@ def test_notebook_runs_and_remakes_its_gallery_pictures(path, tmp_path, request,
     if missing:
         assert not _ict_present(), f"{path.name} no longer makes {missing}; run python3 scripts/make_gallery.py"
         line += f"; not made without the ICT FaceKit data: {', '.join(missing)}"
-    compared = {n: _compare(gallery / n, make_gallery.GALLERY_DIR / n) for n in sorted(made)}
-    wrong = {n: why for n, (why, _, _) in compared.items() if why}
-    worst = max((c[1:] for c in compared.values()), default=(0.0, 0.0))
-    line += f"; {len(made)} pictures compared with docs/gallery (worst: {worst[0]:.2f} mean, {worst[1]:.1f} peak grey levels)"
+    here = make_gallery.environment()
+    same = here == manifest["environment"]
+    wrong = {n: why for n in sorted(made)
+             if (why := _compare(gallery / n, make_gallery.GALLERY_DIR / n, same_libraries=same))}
+    identical = sum((gallery / n).read_bytes() == (make_gallery.GALLERY_DIR / n).read_bytes() for n in made)
+    if same:
+        line += (f"; {len(made)} pictures match docs/gallery ({identical} byte for byte, the others within "
+                 f"{LOCAL_TOLERANCE:g} grey levels over {WINDOW}x{WINDOW} px and {MEAN_TOLERANCE:g} on average)")
+    else:
+        changed = {k: f"{manifest['environment'].get(k)} -> {v}" for k, v in here.items()
+                   if manifest["environment"].get(k) != v}
+        line += (f"; {len(made)} pictures within {OTHER_LIBRARIES_TOLERANCE} grey levels of docs/gallery on average: "
+                 f"the gallery was drawn with other libraries ({json.dumps(changed)})")
     notebook_report.append(line)
     assert not wrong, (f"{path.name}: pictures no longer match docs/gallery ({wrong}): if the change is meant, run "
                        "python3 scripts/make_gallery.py and look at them")
+
+
+def _rounding_and_changes(picture: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The picture with a machine's rounding (about 1 % of its pixels off by up to 20 grey
+    levels, scattered), and with four real changes of it."""
+    rng = np.random.default_rng(0)
+    h, w = picture.shape[:2]
+    noisy = picture.astype(np.int16)
+    at = rng.random((h, w)) < 0.01
+    noisy[at] += rng.integers(-20, 21, (int(at.sum()), 1))
+    # The busiest 10x10 detail (a marker, a label, an edge) moved by 3 px.
+    import cv2
+
+    g = picture.mean(axis=2).astype(np.float32)
+    var = (cv2.blur(g * g, (10, 10)) - cv2.blur(g, (10, 10)) ** 2)[10:-10, 10:-10]
+    cy, cx = (int(c) + 10 for c in np.unravel_index(np.argmax(var), var.shape))
+    moved = picture.copy()
+    moved[cy - 5:cy + 5, cx - 2:cx + 8] = picture[cy - 5:cy + 5, cx - 5:cx + 5]
+    inverted = picture.copy()
+    inverted[cy - 4:cy + 4, cx - 4:cx + 4] = 255 - inverted[cy - 4:cy + 4, cx - 4:cx + 4]
+    brighter = np.clip(picture.astype(np.int16) + 2, 0, 255).astype(np.uint8)
+    return np.clip(noisy, 0, 255).astype(np.uint8), {"a detail moved by 3 px": moved, "an 8x8 detail inverted": inverted,
+                                                      "the picture moved by 1 px": np.roll(picture, 1, axis=1),
+                                                      "2 grey levels brighter": brighter}
+
+
+@pytest.mark.parametrize("name", ["01_photos_and_points.png", "02_cloning_grid.png", "03_fap_stream.png",
+                                  "04_retargeting.png"])
+def test_the_picture_comparison_lets_rounding_through_and_catches_a_real_change(name, tmp_path):
+    import cv2
+
+    kept = make_gallery.GALLERY_DIR / name
+    picture = cv2.imread(str(kept), cv2.IMREAD_COLOR)
+    noisy, changes = _rounding_and_changes(picture)
+    for label, image in [("rounding", noisy)] + list(changes.items()):
+        path = tmp_path / f"{label}.png"
+        cv2.imwrite(str(path), image)
+        why = _compare(path, kept)
+        assert (why == "") == (label == "rounding"), (label, why)
 
 
 def test_make_gallery_names_an_unknown_notebook_in_one_line(capsys):

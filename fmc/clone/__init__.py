@@ -32,9 +32,11 @@ The method, after Pandžić [1]_, one small function per step:
    surface takes that surface's motion, not the layer behind); each corner's value is
    carried half-way along its gradient (:func:`gradient_operator`), exact for quadratic
    motion.
-5. Anti-aliasing: the motion averaged over a disc of samples about the target vertex
-   (Epanechnikov weights), its radius a fraction of the vertex's edges (on by default
-   when the target is sparser than the source).
+5. Anti-aliasing, on request only: the motion averaged over a disc of samples about the
+   target vertex (Epanechnikov weights). A sparse target needs none: each vertex takes the
+   motion at its own place, exactly what a dense target's vertex there takes, and the
+   target's linear interpolation between its vertices is the low-pass; a disc only blurs
+   (figures in :func:`correspond` and ``benchmarks/clone_antialiasing.py``).
 6. Lips (:func:`lip_sides`, :func:`lip_classes`, :func:`lip_sides_on_mesh`): upper-lip
    target vertices take no motion from the source's lower lip, and the other way round;
    the lips' zone is a polygon of their feature points, the side within it the lip whose
@@ -52,7 +54,7 @@ References
 
 from .align import (FPTriangulation, bilaplacian, delaunay_fp_triangulation, folded_triangles, load_fp_triangulation,
                     midway, outer_radius, surface_warp, triangulation_for, vertex_positions, warp)
-from .cloning import (ANTIALIAS_FRACTION, REQUIRED_FPS, Correspondence, align_heads, check_head, clone, clone_targets,
+from .cloning import (REQUIRED_FPS, Correspondence, align_heads, check_head, clone, clone_targets,
                       correspond, lip_sides, pin_feature_points, skin_weights)
 from .contours import CONTOURS, contour_pairs, contour_path, edge_graph
 from .interpolate import TriangleIndex, disc_samples, gradient_operator, interpolation_matrix
@@ -61,7 +63,7 @@ from .regions import LIP_FPS, lip_classes, lip_sides_on_mesh, normalisation, reg
 from .space import MOUTH_SPAN, alignment_space, cylinder_axis
 
 __all__ = [
-    "clone", "clone_targets", "correspond", "Correspondence", "check_head", "REQUIRED_FPS", "ANTIALIAS_FRACTION",
+    "clone", "clone_targets", "correspond", "Correspondence", "check_head", "REQUIRED_FPS",
     "align_heads", "lip_sides", "skin_weights", "pin_feature_points",
     "normalisation", "region_scales", "lip_classes", "lip_sides_on_mesh", "LIP_FPS",
     "alignment_space", "cylinder_axis", "MOUTH_SPAN",

@@ -15,9 +15,11 @@ triangle by its barycentric weights [1]_:
 - each corner's value may be carried half-way to the point along the corner's gradient
   (:func:`gradient_operator`): exact for quadratic motion, where the barycentric blend
   alone flattens the motion's curvature (and cloning there and back flattens it twice);
-- anti-aliasing: a point may average the motion over samples in a disc about it
-  (Epanechnikov weights, radius ``support`` in the alignment space, one per point), so a
-  sparse target does not pick single values out of a dense source's finer detail.
+- anti-aliasing, on request: a point may average the motion over samples in a disc about
+  it (Epanechnikov weights, radius ``support`` in the alignment space, one per point).
+  Cloning asks for none by default: a sparse target's own linear interpolation between
+  its vertices is the low-pass, and the averaging only blurs (see
+  :func:`fmc.clone.correspond`).
 
 Points are located through a uniform grid over the triangles' bounding boxes
 (:class:`TriangleIndex`); a point its own cell does not settle tries the triangles round

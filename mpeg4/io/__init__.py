@@ -73,9 +73,15 @@ def load_head(path: str | os.PathLike, feature_points: bool = True):
     """
     require_file(path, "head file")
     ext = _format(path, False)
-    if ext == ".obj":
-        return _function("obj.read_obj")(path, feature_points=feature_points)
-    head = _function(HEAD_FORMATS[ext][0])(path)
+    try:
+        if ext == ".obj":
+            return _function("obj.read_obj")(path, feature_points=feature_points)
+        head = _function(HEAD_FORMATS[ext][0])(path)
+    except InputError as e:
+        if e.where is None or not e.where.startswith("part "):
+            raise
+        # A part's own check knows the part, not the file it came from.
+        raise InputError(e.what, where=f"{os.fspath(path)}, {e.where}", fix=e.fix) from None
     sidecar = Path(path).with_suffix(".fdp.json")
     if feature_points and not head.feature_points and sidecar.is_file():
         from .fdp_json import apply_fdp, read_fdp_json

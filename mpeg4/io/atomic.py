@@ -17,7 +17,8 @@ __all__ = ["atomic_write"]
 
 
 @contextlib.contextmanager
-def atomic_write(path: str | os.PathLike, mode: str = "wb", encoding: str | None = None) -> Iterator[IO]:
+def atomic_write(path: str | os.PathLike, mode: str = "wb", encoding: str | None = None,
+                 permissions: int | None = None) -> Iterator[IO]:
     """Open a temporary file beside ``path``; on success rename it to ``path``.
 
     Parameters
@@ -28,6 +29,9 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb", encoding: str | None
         Binary or text mode.
     encoding : str, optional
         Text encoding (text mode only; defaults to UTF-8).
+    permissions : int, optional
+        The file's permission bits (a copy of a private file stays private); by default
+        those of the file it replaces, or what a plain ``open`` would give.
 
     Examples
     --------
@@ -53,7 +57,7 @@ def atomic_write(path: str | os.PathLike, mode: str = "wb", encoding: str | None
         # mkstemp makes the file private; give it the permissions a plain open() would
         # (or the replaced file's own).
         try:
-            perm = os.stat(path).st_mode & 0o777
+            perm = os.stat(path).st_mode & 0o777 if permissions is None else permissions & 0o777
         except FileNotFoundError:
             umask = os.umask(0)
             os.umask(umask)

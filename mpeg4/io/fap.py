@@ -36,9 +36,18 @@ from ..catalogue import EXPRESSIONS, FAPS, VISEMES
 from ..errors import InputError, require_file
 from .atomic import atomic_write
 
-__all__ = ["FapStream", "parse_fap", "read_fap", "format_fap", "write_fap", "describe_fap", "N_FAPS"]
+__all__ = ["FapStream", "parse_fap", "read_fap", "format_fap", "write_fap", "describe_fap", "N_FAPS", "FPS_RANGE",
+           "MAX_FRAME_NUMBER", "MAX_FAP_VALUE", "check_values"]
 
 N_FAPS = 68
+#: Frame rates accepted, frames per second (a stream's times are its frame numbers over it).
+FPS_RANGE = (0.01, 10000.0)
+#: Largest frame number accepted (players store them as 32-bit integers).
+MAX_FRAME_NUMBER = 2 ** 31 - 1
+#: Largest magnitude of a FAP value accepted: a million units is ten radians for a rotation
+#: (in AU, 1e-5 rad) and a thousand times the face's own distances for a translation (in
+#: FAPU, 1/1024 of them); no face moves further, and beyond it playback overflows.
+MAX_FAP_VALUE = 1e6
 _WIDTH = {1: 4, 2: 6}  # numbers contributed by FAPs 1 and 2
 
 
@@ -83,8 +92,7 @@ class FapStream:
         self.viseme = np.full((n, 4), np.nan) if self.viseme is None else np.asarray(self.viseme, float).reshape(n, 4)
         self.expression = (np.full((n, 6), np.nan) if self.expression is None
                            else np.asarray(self.expression, float).reshape(n, 6))
-        if not self.fps > 0:
-            raise InputError(f"frame rate {self.fps} is not positive", fix="give frames per second, e.g. 25")
+        _check_fps(self.fps, None)
 
     @classmethod
     def from_values(cls, values, fps: float = 25.0, **kw) -> FapStream:
@@ -145,6 +153,26 @@ class FapStream:
         return out
 
 
+def _check_fps(fps: float, where: str | None, token: str | None = None) -> None:
+    lo, hi = FPS_RANGE
+    if not lo <= fps <= hi:
+        what = "is not positive" if not fps > 0 else f"is outside {lo:g}..{hi:g}"
+        raise InputError(f"frame rate {token or f'{fps:g}'} {what}", where=where, fix="give frames per second, e.g. 25")
+
+
+def check_values(stream: FapStream, where: str | None = None) -> None:
+    """Raise :class:`InputError` naming the first frame and FAP whose value is NaN-free but
+    beyond :data:`MAX_FAP_VALUE` or not finite (unset values, NaN, are fine)."""
+    for name, arr, col in (("values", stream.values, None), ("viseme", stream.viseme, 1), ("expression", stream.expression, 2)):
+        bad = np.isinf(arr) | (np.abs(np.nan_to_num(arr)) > MAX_FAP_VALUE)
+        if bad.any():
+            i, j = (int(k[0]) for k in np.nonzero(bad))
+            fap_no = j + 1 if col is None else col
+            raise InputError(f"frame {stream.frame_numbers[i]}: FAP {fap_no} ({FAPS[fap_no].name}) is {arr[i, j]:g}, "
+                             f"beyond the {MAX_FAP_VALUE:g} any face motion needs", where=where,
+                             fix="check the stream's values (FAPU or AU; a few hundred to a few thousand is usual)")
+
+
 def _number(token: str, where: str, what: str) -> float:
     try:
         x = float(token)
@@ -174,11 +202,10 @@ def parse_fap(text: str, where: str = "<string>", lenient: bool = False) -> FapS
                          where=here, fix="e.g. '2.1 demo 25 100'")
     version, name = head[0], " ".join(head[1:-2])
     fps = _number(head[-2], here, "frame rate")
-    if fps <= 0:
-        raise InputError(f"frame rate {head[-2]} is not positive", where=here, fix="give frames per second, e.g. 25")
+    _check_fps(fps, here, head[-2])
     declared = _number(head[-1], here, "frame count")
-    if declared < 0 or declared != int(declared):
-        raise InputError(f"frame count {head[-1]} is not a whole number", where=here)
+    if declared < 0 or declared != int(declared) or declared > MAX_FRAME_NUMBER:
+        raise InputError(f"frame count {head[-1]} is not a whole number up to {MAX_FRAME_NUMBER}", where=here)
     body = lines[1:]
     frames, vals, vis, exps = [], [], [], []
     k = 0
@@ -207,6 +234,10 @@ def parse_fap(text: str, where: str = "<string>", lenient: bool = False) -> FapS
         frame = nums[0]
         if frame != int(frame):
             raise InputError(f"frame number {vtoks[0]} is not a whole number", where=here)
+        if abs(frame) > MAX_FRAME_NUMBER:
+            raise InputError(f"frame number {vtoks[0]} is beyond {MAX_FRAME_NUMBER}", where=here,
+                             fix="number the frames from 0 or 1")
+
         if frames and int(frame) <= frames[-1]:
             raise InputError(f"frame number {int(frame)} does not follow frame {frames[-1]}", where=here,
                              fix="frame numbers must increase")
@@ -217,6 +248,11 @@ def parse_fap(text: str, where: str = "<string>", lenient: bool = False) -> FapS
         for f in np.flatnonzero(flags):
             width = _WIDTH.get(f + 1, 1)
             chunk = nums[pos:pos + width]
+            big = [k for k, x in enumerate(chunk) if abs(x) > MAX_FAP_VALUE]
+            if big:
+                raise InputError(f"frame {int(frame)}: FAP {f + 1} ({FAPS[f + 1].name}) is {vtoks[pos + big[0]]}, beyond "
+                                 f"the {MAX_FAP_VALUE:g} any face motion needs", where=here,
+                                 fix="check the stream's values (FAPU or AU; a few hundred to a few thousand is usual)")
             pos += width
             if f == 0:
                 v[:] = chunk
@@ -279,7 +315,8 @@ def format_fap(stream: FapStream) -> str:
 
 
 def write_fap(stream: FapStream, path: str | os.PathLike) -> str:
-    """Write ``stream`` as a ``.fap`` file, atomically."""
+    """Write ``stream`` as a ``.fap`` file, atomically (refusing values :func:`check_values` refuses)."""
+    check_values(stream, where=os.fspath(path))
     with atomic_write(path, "w", encoding="utf-8") as f:
         f.write(format_fap(stream))
     return os.fspath(path)

@@ -29,6 +29,7 @@ from ..errors import InputError, require_file
 from ..fapu import FAPU
 from ..fat import FAT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
 from .atomic import atomic_write
+from .strict_json import loads
 
 __all__ = ["FORMAT", "VERSION", "write_fat_npz", "read_fat_npz", "quantisation_error"]
 
@@ -90,11 +91,13 @@ def read_fat_npz(path: str | os.PathLike) -> FAT:
     path = require_file(path, "FAT file")
     try:
         with np.load(path, allow_pickle=False) as z:
-            header = json.loads(bytes(z["header"]).decode())
+            header = loads(bytes(z["header"]), where=f"{path}, header")
             arrays = {k: z[k] for k in z.files if k != "header"}
     except (OSError, ValueError, KeyError, json.JSONDecodeError) as e:
         raise InputError(f"not a readable FAT file ({type(e).__name__}: {e})", where=path,
                          fix="rebuild it (python3 scripts/build_generic_fat.py for the generic head)") from None
+    if not isinstance(header, dict):
+        raise InputError("its header is not a JSON object", where=path, fix="rebuild it")
     if header.get("format") != FORMAT:
         raise InputError(f"format is {header.get('format')!r}, expected {FORMAT!r}", where=path)
     if int(header.get("version", 0)) > VERSION:

@@ -314,16 +314,10 @@ def parse_fdp(data: dict, where: str = "fdp.json") -> FdpFile:
 
 def read_fdp_json(path: str | os.PathLike) -> FdpFile:
     """Read and validate a ``*.fdp.json`` file."""
+    from .strict_json import read_json
+
     path = require_file(path, "feature point file")
-    try:
-        with open(path, encoding="utf-8") as f:
-            data = json.load(f)
-    except json.JSONDecodeError as e:
-        raise InputError(f"not valid JSON: {e.msg} at line {e.lineno}, column {e.colno}", where=path,
-                         fix="fix the JSON syntax (a missing comma or quote?)") from None
-    except UnicodeDecodeError:
-        raise InputError("not a UTF-8 text file", where=path, fix="give the .fdp.json file, not an image") from None
-    return parse_fdp(data, where=path)
+    return parse_fdp(read_json(path, "feature point file"), where=path)
 
 
 def _ordered(d: dict) -> list[str]:
@@ -374,6 +368,10 @@ def fdp_to_dict(fdp: FdpFile) -> dict:
 def write_fdp_json(path: str | os.PathLike, fdp: FdpFile) -> str:
     """Write ``fdp`` (validated) atomically and return the path."""
     data = fdp_to_dict(fdp)
+    bad = _non_finite(data, [])
+    if bad is not None:
+        raise InputError("not a finite number (NaN or infinity)", where=f"{os.fspath(path)}, {_json_place(bad)}",
+                         fix="check what computed it; nothing was written")
     validate_fdp(json.loads(json.dumps(data)), where=os.fspath(path))
     with atomic_write(path, "w", encoding="utf-8") as f:
         json.dump(data, f, indent=1, allow_nan=False)

@@ -70,6 +70,11 @@ def write_obj(head: Head, path: str | os.PathLike, texture_names: dict[str, str]
     mtl_lines = []
     offset = 0
     for name, part in head.parts.items():
+        for what, arr in (("vertex", part.vertices), ("texture coordinate of vertex", part.uv)):
+            bad = None if arr is None else np.flatnonzero(~np.isfinite(arr).all(axis=1))
+            if bad is not None and len(bad):
+                raise InputError(f"part '{name}': {what} {int(bad[0])} is not a finite number (NaN or infinite)",
+                                 where=os.fspath(path), fix="check what computed it; nothing was written")
         lines += [f"o {name}", f"usemtl {name}"]
         lines.extend(f"v {x:.10g} {y:.10g} {z:.10g}" for x, y, z in part.vertices)
         # vt k belongs to v k (written for every part when any part has uv), so faces

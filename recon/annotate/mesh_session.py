@@ -28,7 +28,7 @@ from mpeg4.head import FeaturePointBinding, Head
 from mpeg4.io.fdp_json import FdpFile, place_mesh, read_fdp_json
 
 from .placement import GUESS_CONFIDENCE
-from .session import LOW_CONFIDENCE, _colour, _hash, _write_file
+from .session import LOW_CONFIDENCE, _colour, _hash, _write_file, file_lock
 
 __all__ = ["MESH_EXTENSIONS", "SNAP_MM", "INSIDE", "MeshSession", "is_mesh"]
 
@@ -329,7 +329,7 @@ class MeshSession:
         InputError
             The file is not a valid annotation of this mesh.
         """
-        with self._lock:
+        with self._lock, file_lock(self.fdp_path, exclusive=False):
             if not self.fdp_path.exists():
                 raise FileNotFoundError(self.fdp_path)
             fdp = read_fdp_json(self.fdp_path)

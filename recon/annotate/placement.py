@@ -20,13 +20,13 @@ from __future__ import annotations
 
 import os
 import sys
-import traceback
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from mpeg4.catalogue import FP_IDS
+from mpeg4.errors import InputError
 from mpeg4.io.fdp_json import FdpFile, ViewAnnotation, read_fdp_json
 from recon.landmarks import detector
 from recon.landmarks.layout import generic_layout, shown_in, visible_side
@@ -287,8 +287,10 @@ def initial_annotation(front: str | os.PathLike, side: str | os.PathLike, fdp_pa
                 raise TypeError(f"detect returned {type(found).__name__}, not an FdpFile")
             attach_photo_sizes(found, sizes, "automatic detection", photos)
         except Exception as e:  # detection is a help, not a requirement: keep the tool usable
-            traceback.print_exc(file=sys.stderr)
-            why = f"automatic detection failed ({e.__class__.__name__}: {e})"
+            what = str(e) if isinstance(e, InputError) else f"{e.__class__.__name__}: {e}"
+            why = f"automatic detection failed ({what})"
+            # One line, as every other message: the page says the same and shows the points.
+            print(f"recon: {why}; the points start from the generic head", file=sys.stderr)
             found = None
     layout = generic_layout() if layout is None else layout
     given = found.views if found is not None else {}

@@ -3,14 +3,23 @@
 Security, for a server that can read two photos and write one file on the user's machine:
 
 - it listens on 127.0.0.1 only, on a port the system picks;
-- every ``/api`` call must carry the session's random token (``X-Annotate-Token``), which
-  only the opened URL holds (in its fragment, which browsers never send to a server);
+- every ``/api`` call must carry the session's random token, which appears on no command
+  line and in no URL: the address printed (and given to the browser, whose command line
+  any local user can read) carries a one-time code instead, which the page exchanges for
+  the token as an HTTP-only, same-site cookie (:func:`login_cookie`) and which is dead once
+  used; programs may send the token in ``X-Annotate-Token``; a browser's request for
+  ``/api`` from a page of another origin (``Sec-Fetch-Site``) is refused;
 - the ``Host`` header must name the loopback address (a page on another site that renames
   itself to 127.0.0.1 by DNS rebinding still sends its own name), and a state-changing
   request from a page of another origin is refused;
 - nothing is served or written but the two photos, the annotation file (and its backup),
   the tool's own page, and the fitted preview head, which lives in memory;
-- request bodies are limited to :data:`MAX_BODY` bytes.
+- request bodies are limited to :data:`MAX_BODY` bytes;
+- a connection must send a whole request within :data:`IDLE_TIMEOUT` seconds of opening
+  (or of its last answer), else it is closed; a client holds at most
+  :data:`MAX_CONNECTIONS` connections at once, and when it opens one more its longest idle
+  one is closed to make room, so idle connections cannot lock the page out
+  (:class:`GuardedH11Protocol`).
 
 API (JSON unless said otherwise):
 
@@ -37,10 +46,11 @@ PUT      /api/fdp            as above; each point is snapped to the surface and 
 
 from __future__ import annotations
 
-import json
+import hashlib
 import os
 import secrets
 import socket
+import threading
 import webbrowser
 from collections.abc import Callable
 from importlib import resources
@@ -50,21 +60,29 @@ from starlette.concurrency import run_in_threadpool
 from starlette.middleware import Middleware
 from starlette.middleware.trustedhost import TrustedHostMiddleware
 from starlette.requests import Request
-from starlette.responses import FileResponse, JSONResponse, Response
+from starlette.responses import JSONResponse, RedirectResponse, Response
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from mpeg4.errors import InputError
+from mpeg4.io.strict_json import loads
 
+from .connections import GuardedH11Protocol, guarded_protocol
 from .mesh_session import MeshSession, is_mesh
 from .session import AnnotationSession, SaveConflict
 
-__all__ = ["MAX_BODY", "TOKEN_HEADER", "HOSTS", "create_app", "annotate", "static_dir", "three_bundle"]
+__all__ = ["MAX_BODY", "TOKEN_HEADER", "HOSTS", "IDLE_TIMEOUT", "MAX_CONNECTIONS", "OneTimeCodes", "GuardedH11Protocol",
+           "login_cookie", "create_app", "make_server", "annotate", "static_dir", "three_bundle"]
 
 #: Largest request body accepted, bytes (84 points in two views take about 10 kB).
 MAX_BODY = 1 << 20
-#: Request header carrying the session token.
+#: Request header carrying the session token (for programs; the page uses the cookie).
 TOKEN_HEADER = "x-annotate-token"
+#: Seconds a connection may stay without a whole request in it (after opening, or after
+#: its last answer) before it is closed.
+IDLE_TIMEOUT = 10.0
+#: Connections one client (address) may hold at once; a browser opens at most 6 to a host.
+MAX_CONNECTIONS = 16
 #: Host names the server answers to.
 HOSTS = ("127.0.0.1", "localhost")
 
@@ -106,12 +124,52 @@ class _TooLarge(Exception):
     pass
 
 
+def login_cookie(token: str) -> str:
+    """The name of the cookie that carries ``token``: one per session, so that two
+    ``recon annotate`` pages open in one browser (cookies do not tell ports apart) keep
+    their own."""
+    return "recon-annotate-" + hashlib.sha256(token.encode()).hexdigest()[:12]
+
+
+class OneTimeCodes:
+    """Codes that each let one browser in once: :meth:`issue` makes one, :meth:`redeem`
+    accepts it once."""
+
+    def __init__(self):
+        self._live: set[str] = set()
+        self._lock = threading.Lock()
+
+    def issue(self) -> str:
+        code = secrets.token_urlsafe(16)
+        with self._lock:
+            self._live.add(code)
+        return code
+
+    def redeem(self, code: str) -> bool:
+        with self._lock:
+            if code in self._live:
+                self._live.discard(code)
+                return True
+        return False
+
+
+def _cookie(headers: dict, name: str) -> bytes:
+    """The value of cookie ``name`` in a request's headers (b"" if absent)."""
+    for item in headers.get("cookie", b"").split(b";"):
+        key, _, value = item.strip().partition(b"=")
+        if key == name.encode():
+            return value
+    return b""
+
+
 class _Guard:
-    """ASGI middleware: body size limit for every request; token and origin for ``/api``."""
+    """ASGI middleware: body size limit for every request; token (header or cookie) and
+    origin for ``/api``."""
 
     def __init__(self, app, token: str, max_body: int):
         self.app = app
         self.token = token.encode()
+        self.cookie = login_cookie(token)
         self.max_body = max_body
 
     async def __call__(self, scope, receive, send):
@@ -124,10 +182,14 @@ class _Guard:
             await _error(413, f"request body over {self.max_body} bytes")(scope, receive, send)
             return
         if scope["path"].startswith("/api/") or scope["path"] == "/api":
-            given = headers.get(TOKEN_HEADER, b"")
+            given = headers.get(TOKEN_HEADER) or _cookie(headers, self.cookie)
             if not secrets.compare_digest(given, self.token):
                 await _error(401, "missing or wrong session token",
-                             fix="open the URL recon annotate printed (it carries the token)")(scope, receive, send)
+                             fix="open the address recon annotate printed, in this browser")(scope, receive, send)
+                return
+            site = headers.get("sec-fetch-site")
+            if site is not None and site not in (b"same-origin", b"none"):
+                await _error(403, "request from another site's page")(scope, receive, send)
                 return
             origin = headers.get("origin")
             if scope["method"] not in ("GET", "HEAD") and origin is not None:
@@ -168,9 +230,9 @@ async def _json_body(request: Request):
     """The request's JSON body; :class:`_MalformedJSON` with the parser's message."""
     raw = await request.body()
     try:
-        return json.loads(raw)
-    except (json.JSONDecodeError, UnicodeDecodeError) as e:
-        raise _MalformedJSON(f"malformed JSON: {e}") from None
+        return loads(raw, where="request body")
+    except InputError as e:  # syntax, nesting deeper than any page sends, a key twice
+        raise _MalformedJSON(f"malformed JSON: {e.what}") from None
 
 
 def _views_of(body, allowed=("views",)) -> object:
@@ -182,7 +244,8 @@ def _views_of(body, allowed=("views",)) -> object:
     return body["views"]
 
 
-def create_app(session: AnnotationSession | MeshSession, token: str, max_body: int = MAX_BODY) -> Starlette:
+def create_app(session: AnnotationSession | MeshSession, token: str, max_body: int = MAX_BODY,
+               codes: OneTimeCodes | None = None) -> Starlette:
     """The tool's ASGI app for one session.
 
     Parameters
@@ -190,13 +253,27 @@ def create_app(session: AnnotationSession | MeshSession, token: str, max_body: i
     session : AnnotationSession or MeshSession
         Two photos, or a head mesh (the 3D mode).
     token : str
-        The secret every ``/api`` call must carry in ``X-Annotate-Token``.
+        The secret every ``/api`` call must carry, in the cookie :func:`login_cookie`
+        names or in ``X-Annotate-Token``.
     max_body : int
         Largest request body, bytes.
+    codes : OneTimeCodes, optional
+        The one-time codes ``/?code=...`` accepts (one each) to set the cookie; the app's
+        own (``app.state.codes``) when None.
     """
     static = static_dir()
+    codes = codes if codes is not None else OneTimeCodes()
 
     async def page(request: Request):
+        code = request.query_params.get("code")
+        if code is not None:
+            # Away from the address with the code (so a reload or the history does not keep
+            # it), with the session's cookie when the code is good and unused.
+            out = RedirectResponse("/", status_code=303, headers={"Cache-Control": "no-store",
+                                                                 "Referrer-Policy": "no-referrer"})
+            if codes.redeem(code):
+                out.set_cookie(login_cookie(token), token, httponly=True, samesite="strict", path="/")
+            return out
         return Response(static.joinpath("index.html").read_bytes(), media_type="text/html; charset=utf-8",
                         headers=_PAGE_HEADERS)
 
@@ -210,10 +287,9 @@ def create_app(session: AnnotationSession | MeshSession, token: str, max_body: i
         if view not in session.photos:
             return _error(404, f"no photo '{view}'", fix="the photos are 'front' and 'side'")
         p = session.photos[view]
+        # The file opened at the start, whatever its name points to now.
         data = await run_in_threadpool(p.content)
-        if data is not None:
-            return Response(data, media_type="image/png", headers={"Cache-Control": "no-store"})
-        return FileResponse(p.path, media_type=p.media_type, headers={"Cache-Control": "no-store"})
+        return Response(data, media_type=p.media_type, headers={"Cache-Control": "no-store"})
 
     async def read_fdp(request: Request):
         try:
@@ -270,7 +346,20 @@ def create_app(session: AnnotationSession | MeshSession, token: str, max_body: i
         SaveConflict: lambda request, e: _error(409, str(e),
                                                 fix="load the file from disk, or save again to overwrite it"),
     }
-    return Starlette(routes=routes, middleware=middleware, exception_handlers=handlers)
+    app = Starlette(routes=routes, middleware=middleware, exception_handlers=handlers)
+    app.state.codes = codes
+    return app
+
+
+def make_server(app: Starlette, idle_timeout: float = IDLE_TIMEOUT, max_connections: int = MAX_CONNECTIONS):
+    """A uvicorn server for ``app`` whose connections follow :class:`GuardedH11Protocol`
+    (run it with ``server.run(sockets=[sock])``)."""
+    import uvicorn
+
+    # No limit_concurrency: it counts idle connections too, and answers 503 once they fill it.
+    config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="off", ws="none",
+                            http=guarded_protocol(idle_timeout, max_connections), timeout_graceful_shutdown=2)
+    return uvicorn.Server(config)
 
 
 def annotate(front, side=None, fdp=None, open_browser: bool = True, port: int = 0, detect=True,
@@ -298,15 +387,14 @@ def annotate(front, side=None, fdp=None, open_browser: bool = True, port: int = 
     unit, up, forward : str, optional
         The mesh's unit and axes (3D mode; see :func:`recon.mark.estimate_frame`).
     ready : callable, optional
-        Called with the page's URL (which carries the token) once the server listens.
+        Called with the page's address once the server listens: it carries a one-time code
+        (the browser opened here uses another), never the session's token.
 
     Returns
     -------
     path
         The annotation file.
     """
-    import uvicorn
-
     if side is None:
         if not is_mesh(front):
             raise InputError("one file given, and it is not a head mesh", where=os.fspath(front),
@@ -316,21 +404,23 @@ def annotate(front, side=None, fdp=None, open_browser: bool = True, port: int = 
         session = AnnotationSession(front, side, fdp, detect=detect, ipd_mm=ipd_mm, focal_px=focal_px,
                                     background=True)
     token = secrets.token_urlsafe(24)
+    codes = OneTimeCodes()
     sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     try:
         sock.bind(("127.0.0.1", port))
     except OSError as e:
         sock.close()
+        session.close()
         raise InputError(f"cannot listen on 127.0.0.1:{port} ({e.strerror})", fix="give another --port, or 0") from None
     sock.listen(64)  # before the browser is told, so its first request waits in the queue
-    url = f"http://127.0.0.1:{sock.getsockname()[1]}/#token={token}"
-    config = uvicorn.Config(create_app(session, token), log_level="warning", access_log=False, lifespan="off",
-                            limit_concurrency=32, timeout_graceful_shutdown=2)
-    server = uvicorn.Server(config)
+    base = f"http://127.0.0.1:{sock.getsockname()[1]}/"
+    server = make_server(create_app(session, token, codes=codes))
     if ready is not None:
-        ready(url)
+        ready(f"{base}?code={codes.issue()}")
     if open_browser:
-        webbrowser.open(url)
+        # The browser's command line is readable by every local user: it gets a code of its
+        # own, dead once the page has loaded.
+        webbrowser.open(f"{base}?code={codes.issue()}")
     try:
         server.run(sockets=[sock])
     except KeyboardInterrupt:  # uvicorn stops cleanly, then passes Ctrl-C on: the normal way out

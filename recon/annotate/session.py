@@ -7,12 +7,21 @@ annotation file (read and written), plus that file's backup.
 Saving never loses the user's last good file: the new content is validated first
 (:func:`mpeg4.io.fdp_json.validate_fdp`) and written atomically; a file that is not this
 session's own work (there before the session started, or changed on disk by someone else
-and overwritten on the user's say-so) is first copied to ``F.fdp.json.bak``. A file changed
-on disk since the session last read or wrote it is not overwritten unless the user says so.
+and overwritten on the user's say-so) is first copied to ``F.fdp.json.bak``, with the
+file's own permissions. A file changed on disk since the session last read or wrote it is
+not overwritten unless the user says so, and that holds between processes too: the check
+and the write happen under an exclusive lock (``fcntl``) on ``.F.fdp.json.lock`` beside the
+file, so of two ``recon annotate`` saving one file at the same moment, the second is told
+of the first's save as a conflict.
+
+The photos are opened once, when the session starts, and served from those open files: a
+photo renamed or replaced by a link to another file afterwards changes nothing.
 """
 
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import hashlib
 import io
 import os
@@ -69,6 +78,7 @@ class Photo:
     note: str | None = None
     reencode: bool = False
     _png: bytes | None = field(default=None, repr=False)
+    _fd: int | None = field(default=None, repr=False)
 
     @classmethod
     def open(cls, view: str, path) -> Photo:
@@ -79,8 +89,17 @@ class Photo:
         kind = f"{view} photo"
         w, h = photo_size(path, kind)  # checks the file and says what is wrong with it
         path = Path(path).resolve()
-        with Image.open(path) as im:
-            fmt, orientation = im.format, im.getexif().get(0x0112, 1)
+        try:  # the link the user gave is followed once, here; none after
+            fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0))
+        except OSError as e:
+            raise InputError(f"cannot open the photo ({e.strerror})", where=os.fspath(path),
+                             fix="check that it is a file you can read") from None
+        try:
+            with Image.open(io.BytesIO(_read_all(fd))) as im:
+                fmt, orientation = im.format, im.getexif().get(0x0112, 1)
+        except Exception:
+            os.close(fd)
+            raise
         media = _WEB_FORMATS.get(fmt)
         note = None
         reencode = media is None
@@ -89,21 +108,42 @@ class Photo:
             # upright pixels themselves.
             note = f"shown upright by its EXIF orientation tag ({orientation}), as recon reads it"
             reencode = True
-        return cls(view, path, w, h, "image/png" if reencode else media, note, reencode)
+        return cls(view, path, w, h, "image/png" if reencode else media, note, reencode, _fd=fd)
 
-    def content(self) -> bytes | None:
-        """PNG bytes of the displayed pixels when the file is not sent as it is, else None."""
+    def content(self) -> bytes:
+        """The bytes to send: the file as it was opened, or PNG bytes of its displayed
+        pixels (see ``reencode``)."""
+        if self._fd is None:
+            raise InputError("the photo was closed", where=os.fspath(self.path))
         if not self.reencode:
-            return None
+            return _read_all(self._fd)
         if self._png is None:
             from PIL import Image
 
-            from recon.photos import read_photo
+            from recon.photos import decode_photo
 
             buf = io.BytesIO()
-            Image.fromarray(read_photo(self.path, f"{self.view} photo")).save(buf, format="PNG", compress_level=1)
+            image = decode_photo(_read_all(self._fd), os.fspath(self.path), f"{self.view} photo")
+            Image.fromarray(image).save(buf, format="PNG", compress_level=1)
             self._png = buf.getvalue()
         return self._png
+
+    def close(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+
+def _read_all(fd: int) -> bytes:
+    """The whole of an open file, from its start (its current offset untouched)."""
+    size = os.fstat(fd).st_size
+    chunks, at = [], 0
+    while True:
+        chunk = os.pread(fd, max(size - at, 1 << 16), at)
+        if not chunk:
+            return b"".join(chunks)
+        chunks.append(chunk)
+        at += len(chunk)
 
 
 def default_fdp_path(front) -> Path:
@@ -119,29 +159,59 @@ def _hash(path: Path) -> str | None:
         return None
 
 
+def lock_path(fdp_path: Path) -> Path:
+    """The lock file beside an annotation file: ``.F.fdp.json.lock``."""
+    return fdp_path.with_name("." + fdp_path.name + ".lock")
+
+
+@contextlib.contextmanager
+def file_lock(fdp_path: Path, exclusive: bool = True):
+    """Hold an ``fcntl`` lock on the annotation file's lock file: exclusive to check and
+    write, shared to read. Every ``recon annotate`` process takes it, so a check and the
+    write after it are one step for all of them. Where the lock file cannot be made (a
+    folder only readable), a read goes on unlocked; a write fails there anyway."""
+    try:
+        fd = os.open(lock_path(fdp_path), os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o600)
+    except OSError as e:
+        if exclusive:
+            raise InputError(f"cannot write beside the annotation file ({e.strerror})", where=fdp_path,
+                             fix="give --fdp a path in a folder you can write to") from None
+        yield
+        return
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH)
+        yield
+    finally:
+        os.close(fd)  # closing releases the lock
+
+
 def _write_file(session, fdp: FdpFile, force: bool) -> str | None:
-    """Write ``fdp`` to ``session.fdp_path`` as both sessions save (the caller holds its lock).
+    """Write ``fdp`` to ``session.fdp_path`` as both sessions save (the caller holds its
+    thread lock; this takes the file lock every process takes).
 
     Refuses (:class:`SaveConflict`) a file changed on disk since the session read or wrote
-    it, unless ``force``; keeps what was there before as ``.bak`` when it was not this
-    session's own last write; writes atomically. Returns the backup's path, or None.
+    it, unless ``force``; keeps what was there before as ``.bak`` (with the file's own
+    permissions) when it was not this session's own last write; writes atomically. Returns
+    the backup's path, or None.
     """
-    on_disk = _hash(session.fdp_path)
-    if on_disk is not None and on_disk != session._disk and not force:
-        raise SaveConflict(f"{session.fdp_path} changed on disk since this page loaded it")
-    backup = None
-    if on_disk is not None and (session._foreign or on_disk != session._disk):
-        with atomic_write(session.backup_path, "wb") as f:
-            f.write(session.fdp_path.read_bytes())
-        backup = os.fspath(session.backup_path)
-    try:
-        write_fdp_json(session.fdp_path, fdp)
-    except OSError as e:
-        raise InputError(f"cannot write the annotation file ({e.strerror})", where=session.fdp_path,
-                         fix="give --fdp a path in a folder you can write to") from None
-    session._foreign = False
-    session._disk = _hash(session.fdp_path)
-    session.saved_at = session.fdp_path.stat().st_mtime
+    with file_lock(session.fdp_path):
+        on_disk = _hash(session.fdp_path)
+        if on_disk is not None and on_disk != session._disk and not force:
+            raise SaveConflict(f"{session.fdp_path} changed on disk since this page loaded it")
+        backup = None
+        if on_disk is not None and (session._foreign or on_disk != session._disk):
+            mode = session.fdp_path.stat().st_mode
+            with atomic_write(session.backup_path, "wb", permissions=mode) as f:
+                f.write(session.fdp_path.read_bytes())
+            backup = os.fspath(session.backup_path)
+        try:
+            write_fdp_json(session.fdp_path, fdp)
+        except OSError as e:
+            raise InputError(f"cannot write the annotation file ({e.strerror})", where=session.fdp_path,
+                             fix="give --fdp a path in a folder you can write to") from None
+        session._foreign = False
+        session._disk = _hash(session.fdp_path)
+        session.saved_at = session.fdp_path.stat().st_mtime
     return backup
 
 
@@ -333,7 +403,7 @@ class AnnotationSession:
         from mpeg4.io.fdp_json import read_fdp_json
         from recon.shape.fit import attach_photo_sizes
 
-        with self._lock:
+        with self._lock, file_lock(self.fdp_path, exclusive=False):
             if not self.fdp_path.exists():
                 raise FileNotFoundError(self.fdp_path)
             fdp = read_fdp_json(self.fdp_path)
@@ -413,3 +483,5 @@ class AnnotationSession:
 
     def close(self) -> None:
         self._tmp.cleanup()
+        for p in self.photos.values():
+            p.close()

@@ -7,13 +7,13 @@ folder, empty cells take the batch's defaults, and an error names the line and t
 from __future__ import annotations
 
 import csv
-import json
 import os
 import re
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from mpeg4.errors import InputError
+from mpeg4.io.strict_json import loads
 
 __all__ = ["GENERIC_SOURCE", "ManifestRow", "read_manifest"]
 
@@ -194,11 +194,7 @@ def read_manifest(path: str | os.PathLike) -> list[ManifestRow]:
             for n, text in enumerate(f, 1):
                 if not text.strip() or text.lstrip().startswith("#"):
                     continue
-                try:
-                    raw = json.loads(text)
-                except json.JSONDecodeError as e:
-                    raise InputError(f"not JSON ({e.msg}, column {e.colno})", where=f"{path}, line {n}",
-                                     fix="write one JSON object a line") from None
+                raw = loads(text, where=f"{path}, line {n}")
                 if not isinstance(raw, dict):
                     raise InputError(f"a JSON {type(raw).__name__}, not an object", where=f"{path}, line {n}",
                                      fix='write one object a line, e.g. {"id": "p1", "front": "p1_front.jpg"}')

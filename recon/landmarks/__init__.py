@@ -104,15 +104,18 @@ def detect(front_path: str | os.PathLike, side_path: str | os.PathLike, side_fac
     MediapipeMissing
         mediapipe is not installed.
     """
-    from recon.photos import check_photo, read_photo
+    from recon.photos import check_photo, photo_scale, photo_size, read_photo, view_at_size
 
-    front = read_photo(front_path, "front photo")
-    side = read_photo(side_path, "side photo")
-    check_photo(front, os.fspath(front_path))
-    check_photo(side, os.fspath(side_path))
+    paths = {"front": front_path, "side": side_path}
+    sizes = {n: photo_size(p, f"{n} photo") for n, p in paths.items()}
+    for n, size in sizes.items():
+        check_photo(size, os.fspath(paths[n]))
+    scale = photo_scale(sizes.values())  # a huge photo is read smaller, its points carried back
+    front, side = (read_photo(paths[n], f"{n} photo", scale) for n in ("front", "side"))
     fdp = detect_images(front, side, os.fspath(front_path), os.fspath(side_path), side_facing)
-    fdp.views["front"].image = os.fspath(front_path)
-    fdp.views["side"].image = os.fspath(side_path)
+    for n, p in paths.items():
+        fdp.views[n] = view_at_size(fdp.views[n], *sizes[n])
+        fdp.views[n].image = os.fspath(p)
     return fdp
 
 

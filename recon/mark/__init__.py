@@ -67,6 +67,7 @@ from mpeg4.head import FeaturePointBinding, Head
 from mpeg4.io.fdp_json import FdpFile, place_mesh
 from recon.shape.deform import fit_similarity
 
+from .decimate import MAX_MARK_TRIANGLES, carry_back, decimate
 from .frame import AXES, UNITS, Frame, check_mesh, estimate_frame, refine_frame
 from .lift import Hit, _Surface, lift
 from .parts import _inside_binding, find_parts
@@ -75,7 +76,7 @@ from .views import Views, landmark_detector, render_views, untextured_guesses
 
 __all__ = ["UNITS", "AXES", "Frame", "check_mesh", "estimate_frame", "refine_frame", "Views", "render_views",
            "landmark_detector", "untextured_guesses", "Hit", "lift", "find_parts", "fitted_points", "hidden_points",
-           "Marking", "mark", "mark_file", "load_mesh", "default_fdp_path", "MIN_POINTS"]
+           "Marking", "mark", "mark_file", "load_mesh", "default_fdp_path", "MIN_POINTS", "MAX_MARK_TRIANGLES"]
 
 #: Fewest front-view points the detector must find for the render to count as a face.
 MIN_POINTS = 12
@@ -157,7 +158,7 @@ def _detect(detect, views: Views, name: str, where: str) -> FdpFile:
 
 def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | None = None, up: str | None = None,
          forward: str | None = None, size: int = 1024, passes: int = 2, progress: Callable[[str], None] | None = None,
-         where: str | None = None) -> Marking:
+         where: str | None = None, max_triangles: int = MAX_MARK_TRIANGLES) -> Marking:
     """Feature points on a head mesh (see the module docstring).
 
     Parameters
@@ -182,6 +183,9 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
         Called with a short message before each step.
     where : str, optional
         The file's name for messages.
+    max_triangles : int
+        A mesh with more triangles is marked on a decimated copy, the points then bound to
+        the file's own triangles (:mod:`recon.mark.decimate`), which bounds the memory.
 
     Returns
     -------
@@ -199,6 +203,30 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
     else:
         raw, where = load_mesh(mesh), where or os.fspath(mesh)
     warnings = check_mesh(raw, where)
+    n = sum(len(p.triangles) for p in raw.parts.values())
+    if n <= max_triangles:
+        return _mark(raw, where, warnings, detect, unit, up, forward, size, passes, say)
+    say(f"decimating the mesh's {n} triangles to at most {max_triangles} for marking")
+    small, dec = decimate(raw, max_triangles)
+    result = _mark(small, where, warnings, detect, unit, up, forward, size, passes, say)
+    say("binding the points to the file's own triangles")
+    head, bindings, parts = carry_back(result.head, dict(result.head.feature_points), result.fdp.parts, raw,
+                                       result.frame.matrix, dec, where)
+    fdp = result.fdp
+    fdp.bindings, fdp.parts, fdp.points3d = dict(bindings), parts, head.fp_positions()
+    try:
+        fdp.fapu = head.fapu
+    except InputError:
+        fdp.fapu = None
+    notes = result.notes + [f"marked on a copy decimated from {dec.triangles[0]} to {dec.triangles[1]} triangles"]
+    fdp.metadata["mark3d"]["notes"] = notes
+    head.metadata = dict(raw.metadata, mark3d={"reviewed": False})
+    return Marking(head, fdp, result.frame, result.hits, notes, result.warnings)
+
+
+def _mark(raw: Head, where: str, warnings: list[str], detect, unit, up, forward, size: int, passes: int,
+          say: Callable[[str], None]) -> Marking:
+    """:func:`mark` on a mesh as read (and checked)."""
     say("finding the neutral frame")
     frame = estimate_frame(raw, unit, up, forward, where)
     detect = landmark_detector() if detect is None else detect
@@ -316,7 +344,7 @@ def mark_file(mesh, out=None, detect=None, unit=None, up=None, forward=None, pas
     result = mark(mesh, detect=detect, unit=unit, up=up, forward=forward, passes=passes, progress=progress)
     if out.exists():
         backup = out.with_name(out.name + ".bak")
-        with atomic_write(backup, "wb") as f:
+        with atomic_write(backup, "wb", permissions=out.stat().st_mode) as f:  # a private file's copy stays private
             f.write(out.read_bytes())
     write_fdp_json(out, result.fdp)
     return out, result

@@ -34,7 +34,7 @@ def test_morph_targets_and_mirror_error():
 def test_bad_heads_are_rejected_with_clear_messages():
     with pytest.raises(InputError, match="part 'skin': a triangle index is outside 0..2"):
         Part("skin", np.zeros((3, 3)), [[0, 1, 3]])
-    with pytest.raises(InputError, match="vertices contain NaN"):
+    with pytest.raises(InputError, match=r"part 'skin': vertex \d+ \(of \d+ such\) has a NaN or infinite coordinate \(fix: "):
         Part("skin", [[0, 0, np.nan]] * 3, [[0, 1, 2]])
     skin = Part("skin", np.zeros((3, 3)), [[0, 1, 2]])
     with pytest.raises(InputError, match="feature point 2.1 is bound to vertex 5 of part 'skin', which has 3"):

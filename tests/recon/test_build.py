@@ -244,3 +244,45 @@ def test_build_without_annotations_detects_writes_and_keeps_the_points(tmp_path)
         run_build(front, side, None, tmp_path / "b", texture_size=256)
     with pytest.raises(InputError, match="neither left nor right"):
         run_build(front, side, None, tmp_path / "c", side_facing="up")
+
+
+@pytest.mark.slow
+def test_a_pair_of_huge_photos_builds_under_2_gb_and_gives_the_same_head(tmp_path):
+    """The example photos blown up to 9600 x 12000 (115 megapixels; a 12000 x 9000 pair took
+    9.2 GB before photos were read smaller): the child measures its own peak memory."""
+    import textwrap
+    from pathlib import Path
+
+    from recon.photos import MAX_PHOTO_PIXELS
+
+    w, h = 9600, 12000
+    fdp = read_fdp_json(EXAMPLE_FDP)
+    for name, view in fdp.views.items():
+        im = Image.open(EXAMPLE_DIR / view.image)
+        sx, sy = w / im.width, h / im.height
+        im.resize((w, h), Image.BILINEAR).save(tmp_path / f"{name}.jpg", quality=85)
+        view.points = {i: (p + 0.5) * [sx, sy] - 0.5 for i, p in view.points.items()}
+        view.image, view.width, view.height = f"{name}.jpg", w, h
+    write_fdp_json(tmp_path / "big.fdp.json", fdp)
+    focal = CAM["focal_px"] * w / 1024
+    root = Path(__file__).resolve().parents[2]
+    script = textwrap.dedent(f'''
+        import resource, sys
+        sys.path.insert(0, {str(root)!r})
+        from recon.build import run_build
+        run_build(None, None, {str(tmp_path / "big.fdp.json")!r}, {str(tmp_path / "out")!r}, ipd_mm={CAM["ipd_mm"]},
+                  focal_px={focal}, texture_size=1024)
+        print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+    ''')
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    peak_mb = float(run.stdout.split()[-1])
+    assert peak_mb < 2048, f"peak {peak_mb:.0f} MB"
+    # The same head as from the photos at their own size, the annotations as given.
+    small = run_build(None, None, EXAMPLE_FDP, tmp_path / "small", ipd_mm=CAM["ipd_mm"], focal_px=CAM["focal_px"],
+                      texture_size=256)
+    big, ref = read_fdp_json(tmp_path / "out" / "head.fdp.json"), read_fdp_json(small["fdp"])
+    moved = [np.linalg.norm(big.points3d[i] - ref.points3d[i]) for i in ref.points3d]
+    assert max(moved) < 1e-4  # metres
+    assert big.views["front"].width == w and np.allclose(big.views["front"].points["9.3"], fdp.views["front"].points["9.3"])
+    assert w * h > MAX_PHOTO_PIXELS

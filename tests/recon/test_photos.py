@@ -93,3 +93,34 @@ def test_recon_fit_on_the_example_takes_the_lens_from_exif(tmp_path):
     given = heads["given"]
     assert max(np.linalg.norm(heads["exif"][i] - given[i]) for i in given) < 1e-9
     assert max(np.linalg.norm(heads["35mm"][i] - given[i]) for i in given) < 0.5e-3  # metres
+
+
+def test_a_photo_over_the_limit_is_read_smaller_and_its_points_follow(tmp_path):
+    from mpeg4.io.fdp_json import ViewAnnotation
+    from recon.photos import MAX_PHOTO_PIXELS, photo_scale, photo_size, read_photo, view_at_size
+
+    # One factor for a pair, from the larger photo; none below the limit.
+    assert photo_scale([(4000, 3000), (3000, 2000)]) == pytest.approx(np.sqrt(MAX_PHOTO_PIXELS / 12e6))
+    assert photo_scale([(2000, 1500), (1000, 800)]) == 1.0
+    # A photo with a bright square at known pixels, stored sideways (EXIF 6): read at a
+    # quarter, the square is where the points say it is.
+    img = np.zeros((800, 1200, 3), np.uint8)
+    img[300:340, 700:760] = 255  # displayed: rows 300..339, columns 700..759
+    Image.fromarray(np.rot90(img, 1).copy()).save(tmp_path / "p.jpg", quality=95,
+                                                  exif=_exif({0x0112: 6}))
+    assert photo_size(tmp_path / "p.jpg") == (1200, 800)
+    small = read_photo(tmp_path / "p.jpg", scale=0.25)
+    assert small.shape == (200, 300, 3)
+    view = ViewAnnotation(None, 1200, 800, {"9.3": np.array([729.5, 319.5])})
+    p = view_at_size(view, 300, 200).points["9.3"]
+    ys, xs = np.nonzero(small.mean(axis=2) > 128)
+    assert abs(xs.mean() - p[0]) < 0.5 and abs(ys.mean() - p[1]) < 0.5
+    back = view_at_size(view_at_size(view, 300, 200), 1200, 800).points["9.3"]
+    np.testing.assert_allclose(back, view.points["9.3"], atol=1e-9)
+
+
+def _exif(tags):
+    exif = Image.Exif()
+    for k, v in tags.items():
+        exif[k] = v
+    return exif

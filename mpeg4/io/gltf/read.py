@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import struct
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -12,10 +13,14 @@ from ...errors import InputError, require_file
 from ...fat import FAT, FaceDefTable, FaceDefTransform, MorphSpec, fat_from_morph_targets
 from ...head import FeaturePointBinding, Head, Part, SparseDisplacement
 
-__all__ = ["FORMAT_VERSION", "GlbAnimation", "read_glb_animation", "read_glb"]
+__all__ = ["FORMAT_VERSION", "MAX_ACCESSOR_VALUES", "GlbAnimation", "read_glb_animation", "read_glb"]
 
 #: Version of the ``extras["mpeg4"]`` layout.
 FORMAT_VERSION = 1
+#: Most numbers one accessor may hold (a mesh of 22 million vertices; a head has well under one).
+MAX_ACCESSOR_VALUES = 1 << 26
+# What a damaged file's dangling references and wrong types raise inside the reader.
+_DAMAGE = (IndexError, KeyError, TypeError, AttributeError, ValueError, OverflowError, struct.error)
 _DTYPES = {5126: np.float32, 5125: np.uint32, 5123: np.uint16, 5121: np.uint8, 5122: np.int16, 5120: np.int8}
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 
@@ -50,6 +55,15 @@ def read_glb_animation(path: str | os.PathLike) -> GlbAnimation | None:
     """The first animation of a GLB written by :func:`write_glb` (None if it has none)."""
     path = require_file(path, "head file")
     r = _Reader(path)
+    try:
+        return _read_animation(r)
+    except InputError:
+        raise
+    except _DAMAGE as e:
+        raise _damaged(path, e) from None
+
+
+def _read_animation(r: _Reader) -> GlbAnimation | None:
     gltf = r.gltf
     if not gltf.animations:
         return None
@@ -114,6 +128,9 @@ class _Reader:
     def accessor(self, index: int) -> np.ndarray:
         a = self.gltf.accessors[index]
         width = _WIDTH[a.type]
+        if not 0 <= a.count * width <= MAX_ACCESSOR_VALUES:
+            raise InputError(f"accessor {index} claims {a.count} elements, beyond the {MAX_ACCESSOR_VALUES} values read",
+                             where=self.path, fix="the file is damaged, or a mesh far larger than a head; export it again")
         dtype = np.dtype(_DTYPES[a.componentType])
         if a.bufferView is None:
             out = np.zeros((a.count, width), dtype)
@@ -240,9 +257,19 @@ def read_glb(path: str | os.PathLike) -> Head:
         if isinstance(node.extras, dict) and isinstance(node.extras.get("mpeg4"), dict):
             ext = node.extras["mpeg4"]
             break
-    if ext is not None:
-        return _read_own(r, ext)
-    return _read_foreign(r)
+    try:
+        return _read_own(r, ext) if ext is not None else _read_foreign(r)
+    except InputError:
+        raise
+    except _DAMAGE as e:
+        raise _damaged(path, e) from None
+
+
+def _damaged(path, e: Exception) -> InputError:
+    """The one-line error for a file whose structure is broken (an index pointing nowhere,
+    a field of the wrong type)."""
+    return InputError(f"the glTF structure is damaged ({e.__class__.__name__}: {str(e)[:100]})", where=path,
+                      fix="export the head again as glTF 2.0 binary (.glb)")
 
 
 def read_glb_feature_points(path: str | os.PathLike) -> dict[str, np.ndarray]:
@@ -254,26 +281,33 @@ def read_glb_feature_points(path: str | os.PathLike) -> dict[str, np.ndarray]:
     dict of str to (3,) float64
         FP id → position in metres, in catalogue order; empty for a file without them.
     """
-    import json
     import struct
+
+    from ..strict_json import loads
 
     path = require_file(path, "head file")
     with open(path, "rb") as f:
         head = f.read(20)
-        if len(head) == 20 and head[:4] == b"glTF" and head[16:20] == b"JSON":
-            doc = json.loads(f.read(struct.unpack("<I", head[12:16])[0]))
-        else:
+        glb = len(head) == 20 and head[:4] == b"glTF" and head[16:20] == b"JSON"
+        if not glb:
             f.seek(0)
-            try:
-                doc = json.loads(f.read())
-            except ValueError as e:
-                raise InputError(f"not a glTF file ({e})", where=os.fspath(path)) from None
-    for node in doc.get("nodes", []):
-        ext = (node.get("extras") or {}).get("mpeg4")
-        if isinstance(ext, dict):
-            fps = ext.get("feature_points") or {}
-            return {i: np.array(fps[i]["position"], float) for i in FP_IDS
-                    if i in fps and "position" in fps[i]}
+        text = f.read(struct.unpack("<I", head[12:16])[0]) if glb else f.read()
+    try:
+        doc = loads(text, where=os.fspath(path))
+    except InputError as e:
+        raise InputError(f"not a glTF file ({e.what})", where=os.fspath(path),
+                         fix="give a .glb or .gltf file") from None
+    if not isinstance(doc, dict):
+        raise InputError("not a glTF file (its JSON is not an object)", where=os.fspath(path))
+    try:
+        for node in doc.get("nodes", []):
+            ext = (node.get("extras") or {}).get("mpeg4")
+            if isinstance(ext, dict):
+                fps = ext.get("feature_points") or {}
+                return {i: np.array(fps[i]["position"], float).reshape(3) for i in FP_IDS
+                        if i in fps and "position" in fps[i]}
+    except _DAMAGE as e:
+        raise _damaged(os.fspath(path), e) from None
     return {}
 
 
@@ -341,7 +375,16 @@ def _read_foreign(r: _Reader) -> Head:
     roots = scene.nodes if scene is not None else list(range(len(gltf.nodes)))
     parts: dict[str, Part] = {}
 
-    def visit(index, parent):
+    seen: set[int] = set()
+    # Depth first, in the file's order, with a stack of its own: a hierarchy thousands of
+    # nodes deep is read like any other.
+    stack = [(index, np.eye(4)) for index in reversed(list(roots))]
+    while stack:
+        index, parent = stack.pop()
+        if index in seen:  # a node reached twice: the hierarchy is not a tree
+            raise InputError(f"node {index} is reached twice in the scene's hierarchy", where=r.path,
+                             fix="export the head again (a glTF node has one parent and no cycles)")
+        seen.add(index)
         node = gltf.nodes[index]
         m = parent @ _node_matrix(node)
         if node.mesh is not None:
@@ -359,11 +402,7 @@ def _read_foreign(r: _Reader) -> Head:
                     name, k = f"{base}_{k}", k + 1
                 parts[name] = Part(name, v, t, uv=uv, texture=r.texture_of(prim.material),
                                    colour=r.colour_of(prim.material))
-        for c in node.children or []:
-            visit(c, m)
-
-    for root in roots:
-        visit(root, np.eye(4))
+        stack += [(c, m) for c in reversed(node.children or [])]
     if not parts or not any(len(p.triangles) for p in parts.values()):
         raise InputError("the file has no triangle meshes", where=r.path, fix="export the head as a triangle mesh")
     return Head(parts, metadata={"source": os.path.basename(r.path)})

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Mapping
 
@@ -18,6 +19,24 @@ __all__ = ["write_glb"]
 
 _FLOAT, _UINT, _USHORT, _UBYTE = 5126, 5125, 5123, 5121
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963
+
+
+class _NotFinite(Exception):
+    """A value to be written is NaN or infinite (``what``, row ``row``)."""
+
+    def __init__(self, what: str, row: int):
+        super().__init__(what, row)
+        self.what, self.row = what, row
+
+
+def _check_finite(array: np.ndarray, what: str) -> np.ndarray:
+    """``array`` as it is, or :class:`_NotFinite` naming its first row with a NaN or an
+    infinity (a float64 beyond float32's range has become one by now)."""
+    if array.dtype.kind == "f":
+        bad = ~np.isfinite(array.reshape(len(array), -1)).all(axis=1)
+        if bad.any():
+            raise _NotFinite(what, int(np.flatnonzero(bad)[0]))
+    return array
 
 
 def _normals(v: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -44,9 +63,10 @@ class _Writer:
         self.gltf.bufferViews.append(view)
         return len(self.gltf.bufferViews) - 1
 
-    def accessor(self, array: np.ndarray, kind: str, target: int | None = None, minmax: bool = False) -> int:
+    def accessor(self, array: np.ndarray, kind: str, target: int | None = None, minmax: bool = False,
+                 what: str = "a value") -> int:
         g = self.g
-        array = np.ascontiguousarray(array)
+        array = _check_finite(np.ascontiguousarray(array), what)
         ctype = {np.float32: _FLOAT, np.uint32: _UINT, np.uint16: _USHORT}[array.dtype.type]
         acc = g.Accessor(bufferView=self.view(array.tobytes(), target), componentType=ctype,
                          count=len(array), type=kind)
@@ -56,13 +76,13 @@ class _Writer:
         self.gltf.accessors.append(acc)
         return len(self.gltf.accessors) - 1
 
-    def sparse_target(self, n: int, d: SparseDisplacement | None) -> int:
+    def sparse_target(self, n: int, d: SparseDisplacement | None, what: str = "a morph target") -> int:
         """A VEC3 accessor of n displacements, zeros except ``d`` (stored sparse)."""
         g = self.g
         acc = g.Accessor(componentType=_FLOAT, count=n, type="VEC3", min=[0.0, 0.0, 0.0], max=[0.0, 0.0, 0.0])
         acc.byteOffset = None  # no bufferView: the format forbids an offset
         if d is not None and len(d.indices):
-            vec = d.vectors.astype(np.float32)
+            vec = _check_finite(d.vectors.astype(np.float32), what)
             lo, hi = vec.min(axis=0), vec.max(axis=0)
             if len(d.indices) < n:  # the vertices not listed are zeros
                 lo, hi = np.minimum(lo, 0), np.maximum(hi, 0)
@@ -102,6 +122,25 @@ def write_glb(head: Head, path: str | os.PathLike, animation: GlbAnimation | Non
     animation : GlbAnimation, optional
         Keyframes; the head node then hangs under a ``pivot`` node at the rotation centre.
     """
+    try:
+        with np.errstate(over="ignore"):  # a value beyond float32 becomes inf, refused below
+            data = _glb_bytes(head, animation)
+    except _NotFinite as e:
+        raise InputError(f"{e.what} {e.row} is not a finite number (NaN, or beyond the float32 range of glTF)",
+                         where=os.fspath(path), fix="check the values that made it (a FAP value far out of range?); "
+                                                    "nothing was written") from None
+    except ValueError as e:
+        if "JSON compliant" not in str(e) and "Out of range float" not in str(e):
+            raise
+        raise InputError("the head's feature points, FAPU, tables or metadata hold a NaN or an infinity",
+                         where=os.fspath(path), fix="check the values that made them; nothing was written") from None
+    with atomic_write(path, "wb") as f:
+        f.write(data)
+    return os.fspath(path)
+
+
+def _glb_bytes(head: Head, animation: GlbAnimation | None) -> bytes:
+    """The GLB file's bytes (see :func:`write_glb`)."""
     w = _Writer()
     g, gltf = w.g, w.gltf
     targets: dict[str, Mapping[str, SparseDisplacement]] = dict(head.morph_targets)
@@ -136,11 +175,14 @@ def write_glb(head: Head, path: str | os.PathLike, animation: GlbAnimation | Non
         for pname in part_names:
             part = head.parts[pname]
             v = part.vertices - (0 if centre is None else centre)
-            attrs = g.Attributes(POSITION=w.accessor(v.astype(np.float32), "VEC3", _ARRAY_BUFFER, minmax=True),
-                                 NORMAL=w.accessor(_normals(v, part.triangles).astype(np.float32), "VEC3", _ARRAY_BUFFER))
+            attrs = g.Attributes(POSITION=w.accessor(v.astype(np.float32), "VEC3", _ARRAY_BUFFER, minmax=True,
+                                                     what=f"part '{pname}': vertex"),
+                                 NORMAL=w.accessor(_normals(v, part.triangles).astype(np.float32), "VEC3", _ARRAY_BUFFER,
+                                                   what=f"part '{pname}': the normal of vertex"))
             if part.uv is not None:
                 uv = np.c_[part.uv[:, 0], 1.0 - part.uv[:, 1]].astype(np.float32)
-                attrs.TEXCOORD_0 = w.accessor(uv, "VEC2", _ARRAY_BUFFER)
+                attrs.TEXCOORD_0 = w.accessor(uv, "VEC2", _ARRAY_BUFFER,
+                                              what=f"part '{pname}': the texture coordinates of vertex")
             idx = part.triangles.reshape(-1)
             idx = idx.astype(np.uint16 if part.n_vertices < 65535 else np.uint32)
             material = g.Material(name=pname, doubleSided=True, pbrMetallicRoughness=g.PbrMetallicRoughness(
@@ -153,7 +195,8 @@ def write_glb(head: Head, path: str | os.PathLike, animation: GlbAnimation | Non
             prim = g.Primitive(attributes=attrs, indices=w.accessor(idx, "SCALAR", _ELEMENT_ARRAY_BUFFER),
                                material=len(gltf.materials) - 1, mode=4)
             if mesh_targets:
-                prim.targets = [{"POSITION": w.sparse_target(part.n_vertices, targets[t].get(pname))}
+                prim.targets = [{"POSITION": w.sparse_target(part.n_vertices, targets[t].get(pname),
+                                                             f"morph target '{t}' of part '{pname}': displacement")}
                                 for t in mesh_targets]
             mesh.primitives.append(prim)
             part_info.append(dict(name=pname, mesh=mesh_name, colour=list(part.colour),
@@ -200,16 +243,15 @@ def write_glb(head: Head, path: str | os.PathLike, animation: GlbAnimation | Non
     gltf.scene = 0
     gltf.buffers.append(g.Buffer(byteLength=len(w.blob)))
     gltf.set_binary_blob(bytes(w.blob))
-    data = b"".join(gltf.save_to_bytes())
-    with atomic_write(path, "wb") as f:
-        f.write(data)
-    return os.fspath(path)
+    # glTF's JSON has no NaN or Infinity: refused here rather than written as invalid JSON.
+    json.dumps(extras, allow_nan=False, default=str)
+    return b"".join(gltf.save_to_bytes())
 
 
 def _add_animation(w: _Writer, anim: GlbAnimation, mesh_targets: dict[str, list[str]]) -> int:
     """Add the pivot node and the animation; return the new root node's index."""
     g, gltf = w.g, w.gltf
-    times = np.asarray(anim.times, dtype=np.float32).reshape(-1)
+    times = _check_finite(np.asarray(anim.times, dtype=np.float32).reshape(-1), "the animation's time of frame")
     if len(times) < 1 or (np.diff(times) <= 0).any():
         raise InputError("animation times must be increasing", fix="give one time per frame, in seconds")
     pivot = np.asarray(anim.pivot, dtype=np.float64).reshape(3)
@@ -225,7 +267,8 @@ def _add_animation(w: _Writer, anim: GlbAnimation, mesh_targets: dict[str, list[
         out = np.zeros((len(times), len(names)), np.float32)
         for j, n in enumerate(names):
             if n in anim.weights:
-                out[:, j] = np.asarray(anim.weights[n], dtype=np.float32)
+                out[:, j] = _check_finite(np.asarray(anim.weights[n], dtype=np.float32),
+                                          f"the animation's weight of morph target '{n}' at frame")
         samplers.append(g.AnimationSampler(input=t_acc, output=w.accessor(out.reshape(-1), "SCALAR"),
                                            interpolation="LINEAR"))
         channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
@@ -234,7 +277,8 @@ def _add_animation(w: _Writer, anim: GlbAnimation, mesh_targets: dict[str, list[
         if node_name not in nodes:
             raise InputError(f"the animation turns node '{node_name}', which the file does not have",
                              fix=f"use one of {sorted(nodes)}")
-        q = np.asarray(quats, dtype=np.float32).reshape(len(times), 4)
+        q = _check_finite(np.asarray(quats, dtype=np.float32).reshape(len(times), 4),
+                          f"the animation's rotation of node '{node_name}' at frame")
         q /= np.linalg.norm(q, axis=1, keepdims=True)
         samplers.append(g.AnimationSampler(input=t_acc, output=w.accessor(q, "VEC4"), interpolation="LINEAR"))
         channels.append(g.AnimationChannel(sampler=len(samplers) - 1,

@@ -1,5 +1,6 @@
-// The server's API. Every call carries the session token, which only the opened URL holds
-// (in its fragment, never sent to the server by the browser itself).
+// The server's API. The browser sends the session's cookie with every call: the server set
+// it (HTTP-only, same-site) when the page was opened by the one-time address recon annotate
+// printed, so no script here ever sees the session's key.
 
 export class ApiError extends Error {
   constructor(status, body) {
@@ -11,11 +12,9 @@ export class ApiError extends Error {
 }
 
 export class Api {
-  constructor(token) { this.token = token; }
-
   async _fetch(path, options = {}) {
-    const headers = { "X-Annotate-Token": this.token, ...(options.headers ?? {}) };
-    const response = await fetch(path, { ...options, headers, cache: "no-store" });
+    const headers = { ...(options.headers ?? {}) };
+    const response = await fetch(path, { ...options, headers, cache: "no-store", credentials: "same-origin" });
     if (!response.ok) {
       let body = null;
       try { body = await response.json(); } catch { /* not JSON */ }

@@ -283,17 +283,17 @@ class App extends Editor {
 }
 
 async function main() {
-  const token = new URLSearchParams(location.hash.slice(1)).get("token");
-  if (!token) {
-    document.body.dataset.error = "token";
-    $("init-message").textContent = "Open the address that recon annotate printed: it carries this session's key.";
-    return;
-  }
-  const api = new Api(token);
+  const api = new Api();
   let state;
   try {
     state = await api.get("/api/state");
   } catch (e) {
+    if (e.status === 401) {
+      document.body.dataset.error = "token";
+      $("init-message").textContent = "Open the address that recon annotate printed (it works once, in one browser; "
+        + "this browser has not opened it).";
+      return;
+    }
     document.body.dataset.error = "state";
     $("init-message").textContent = `The annotation server did not answer: ${e.message}. Is recon annotate still running?`;
     return;
