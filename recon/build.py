@@ -38,6 +38,7 @@ from .shape.calibrate import DEFAULT_IPD_MM
 from .texture.cameras import FittedCamera, fit_camera
 from .shape.fit import attach_photo_sizes, fit_head, require_views
 from .publish import publish
+from .detection import DETECTED_NAME, correction_hint, detect_annotations
 from .photos import MAX_PHOTO_PIXELS, check_photo, photo_scale, photo_size, photos_focal_px, read_photo, view_at_size
 
 __all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "run_build", "bundle_fdp", "build_time",
@@ -409,80 +410,6 @@ def _write_bundle(result: BuildResult, shape: PhotoPair, texture: PhotoPair | No
     return paths
 
 
-#: Where ``recon build`` without annotations writes the points it detected, in its output.
-DETECTED_NAME = "annotations.fdp.json"
-
-
-def detect_annotations(front: str | os.PathLike, side: str | os.PathLike, path: str | os.PathLike,
-                       detect: Callable | None = None, side_facing: str | None = None,
-                       where: str = "recon build") -> Path:
-    """Feature points detected on two photos, written to ``path`` marked unreviewed.
-
-    Parameters
-    ----------
-    front, side : path
-        The photos.
-    path : path
-        Where the annotations go (``"reviewed": false`` in their metadata, so that the
-        build drops points whose heights disagree instead of failing; see
-        :func:`recon.shape.fit.fit_head`). A file there that a person reviewed (saved
-        by ``recon annotate``) is never replaced: that is an error saying to build with it.
-    detect : callable, optional
-        ``detect(front, side) -> FdpFile``; :func:`recon.landmarks.detect` by default.
-    side_facing : {"left", "right"}, optional
-        Where the nose points in the side photo (:func:`recon.landmarks.detect`).
-    where : str
-        Who asks, for the messages.
-
-    Returns
-    -------
-    Path
-        ``path``.
-    """
-    from mpeg4.errors import require_file
-    from mpeg4.io import write_fdp_json
-    from mpeg4.io.fdp_json import FdpFile
-
-    path = Path(path)
-    if path.exists():
-        try:
-            reviewed = read_fdp_json(path).metadata.get("reviewed") is not False
-        except InputError:
-            reviewed = True  # not ours to replace
-        if reviewed:
-            raise InputError(f"{path} holds points a person placed or checked", where=where,
-                             fix=f"build with them: recon build {front} {side} --fdp {path} -o ...; or move the "
-                                 "file away to detect the points again")
-    front, side = require_file(front, "front photo"), require_file(side, "side photo")
-    if detect is None:
-        from .landmarks import detector
-
-        detect, why = detector()
-        if detect is None:
-            raise InputError(f"no annotations were given and {why}", where=where,
-                             fix="mark the points with recon annotate FRONT SIDE and build with --fdp F.fdp.json")
-        found = detect(front, side, side_facing=side_facing)
-    else:
-        found = detect(front, side)
-    if not isinstance(found, FdpFile):
-        raise TypeError(f"automatic detection returned {type(found).__name__}, not an FdpFile")
-    for name, photo in (("front", front), ("side", side)):
-        if name not in found.views or not found.views[name].points:
-            raise InputError(f"automatic detection found no feature points on the {name} photo", where=photo,
-                             fix="check that the photo shows the face, or mark the points with recon annotate")
-        found.views[name].image = photo
-    found.metadata = dict(found.metadata, reviewed=False, source="automatic detection (recon.landmarks)")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_fdp_json(path, found)
-    return path
-
-
-def correction_hint(front, side, fdp_path) -> str:
-    """How to correct detected points and build again."""
-    return (f"check and correct them with: recon annotate {front} {side} --fdp {fdp_path}, then build again with "
-            f"--fdp {fdp_path}")
-
-
 def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, fdp: str | os.PathLike | None,
               out_dir: str | os.PathLike, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
               method: str = "dffd", texture_size: int = DEFAULT_TEXTURE_SIZE, atlas: bool = False,
@@ -499,8 +426,8 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
     fdp : path or None
         Annotations of both photos. Give either ``fdp`` or ``shape_from`` (and optionally
         ``texture_from``), or neither with both photos: the points are then detected
-        (:func:`detect_annotations`) and written to ``OUT/annotations.fdp.json``, kept when
-        the build fails, for a person to correct.
+        (:func:`recon.detection.detect_annotations`) and written to
+        ``OUT/annotations.fdp.json``, kept when the build fails, for a person to correct.
     out_dir : path
         The bundle's folder (created). A previous bundle is replaced whole, only once the
         new one is complete (:func:`recon.publish.publish`); other files there are kept.

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from mpeg4.errors import InputError
 
-from recon.build import DETECTED_NAME, correction_hint, detect_annotations
+from recon.detection import DETECTED_NAME, correction_hint, detect_annotations
 
 from .manifest import ManifestRow
 

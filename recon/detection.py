@@ -1,0 +1,91 @@
+"""Feature points detected for a build when none are given: written where a person can
+correct them, and never over points a person reviewed.
+
+``recon build FRONT SIDE -o OUT`` and a ``recon batch`` row without annotations call
+:func:`detect_annotations`; their messages say how to correct the points
+(:func:`correction_hint`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+from mpeg4.errors import InputError
+
+__all__ = ["DETECTED_NAME", "detect_annotations", "correction_hint"]
+
+
+#: Where ``recon build`` without annotations writes the points it detected, in its output.
+DETECTED_NAME = "annotations.fdp.json"
+
+
+def detect_annotations(front: str | os.PathLike, side: str | os.PathLike, path: str | os.PathLike,
+                       detect: Callable | None = None, side_facing: str | None = None,
+                       where: str = "recon build") -> Path:
+    """Feature points detected on two photos, written to ``path`` marked unreviewed.
+
+    Parameters
+    ----------
+    front, side : path
+        The photos.
+    path : path
+        Where the annotations go (``"reviewed": false`` in their metadata, so that the
+        build drops points whose heights disagree instead of failing; see
+        :func:`recon.shape.fit.fit_head`). A file there that a person reviewed (saved
+        by ``recon annotate``) is never replaced: that is an error saying to build with it.
+    detect : callable, optional
+        ``detect(front, side) -> FdpFile``; :func:`recon.landmarks.detect` by default.
+    side_facing : {"left", "right"}, optional
+        Where the nose points in the side photo (:func:`recon.landmarks.detect`).
+    where : str
+        Who asks, for the messages.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    from mpeg4.errors import require_file
+    from mpeg4.io import read_fdp_json, write_fdp_json
+    from mpeg4.io.fdp_json import FdpFile
+
+    path = Path(path)
+    if path.exists():
+        try:
+            reviewed = read_fdp_json(path).metadata.get("reviewed") is not False
+        except InputError:
+            reviewed = True  # not ours to replace
+        if reviewed:
+            raise InputError(f"{path} holds points a person placed or checked", where=where,
+                             fix=f"build with them: recon build {front} {side} --fdp {path} -o ...; or move the "
+                                 "file away to detect the points again")
+    front, side = require_file(front, "front photo"), require_file(side, "side photo")
+    if detect is None:
+        from .landmarks import detector
+
+        detect, why = detector()
+        if detect is None:
+            raise InputError(f"no annotations were given and {why}", where=where,
+                             fix="mark the points with recon annotate FRONT SIDE and build with --fdp F.fdp.json")
+        found = detect(front, side, side_facing=side_facing)
+    else:
+        found = detect(front, side)
+    if not isinstance(found, FdpFile):
+        raise TypeError(f"automatic detection returned {type(found).__name__}, not an FdpFile")
+    for name, photo in (("front", front), ("side", side)):
+        if name not in found.views or not found.views[name].points:
+            raise InputError(f"automatic detection found no feature points on the {name} photo", where=photo,
+                             fix="check that the photo shows the face, or mark the points with recon annotate")
+        found.views[name].image = photo
+    found.metadata = dict(found.metadata, reviewed=False, source="automatic detection (recon.landmarks)")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_fdp_json(path, found)
+    return path
+
+
+def correction_hint(front, side, fdp_path) -> str:
+    """How to correct detected points and build again."""
+    return (f"check and correct them with: recon annotate {front} {side} --fdp {fdp_path}, then build again with "
+            f"--fdp {fdp_path}")
