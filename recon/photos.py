@@ -69,7 +69,7 @@ def _open(source, where: str, scale: float = 1.0, load: bool = True):
         return im
     im = ImageOps.exif_transpose(im)
     if im.size != target:
-        im = im.convert("RGB").resize(target, Image.Resampling.BOX)
+        im = Image.fromarray(_rgb8(im)).resize(target, Image.Resampling.BOX)
     return im
 
 
@@ -90,18 +90,35 @@ def photo_scale(sizes, max_pixels: int = MAX_PHOTO_PIXELS) -> float:
     return min(1.0, float(np.sqrt(max_pixels / largest))) if largest > 0 else 1.0
 
 
+def _rgb8(im) -> np.ndarray:
+    """(H, W, 3) uint8 RGB of a PIL image of any mode.
+
+    Pillow's own conversion clips 16-bit and 32-bit greys to white: they are scaled here
+    (16-bit data to 8 by 257, floats in [0, 1] by 255), then repeated to RGB.
+    """
+    if im.mode.startswith("I") or im.mode == "F":
+        a = np.asarray(im, dtype=np.float64)
+        if im.mode == "F" and a.size and np.nanmax(a) <= 1.0:
+            a = a * 255.0
+        elif im.mode != "F" and a.size and (im.mode.startswith("I;16") or np.nanmax(a) > 255):
+            a = a / 257.0
+        g = np.clip(np.round(np.nan_to_num(a)), 0, 255).astype(np.uint8)
+        return np.repeat(g[..., None], 3, axis=2)
+    return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
+
+
 def read_photo(path: str | os.PathLike, kind: str = "photo", scale: float = 1.0) -> np.ndarray:
     """(H, W, 3) uint8 RGB of a photo as displayed (EXIF orientation applied, alpha and
     palette flattened), ``scale`` (at most 1) times its size, each side rounded."""
     path = require_file(path, kind)
     with _open(path, path, scale) as im:
-        return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
+        return _rgb8(im)
 
 
 def decode_photo(data: bytes, where: str, kind: str = "photo") -> np.ndarray:
     """As :func:`read_photo`, from the bytes of the file (``where`` names it in errors)."""
     with _open(bytes(data), where) as im:
-        return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
+        return _rgb8(im)
 
 
 def view_at_size(view, width: int, height: int):

@@ -124,3 +124,44 @@ def _exif(tags):
     for k, v in tags.items():
         exif[k] = v
     return exif
+
+
+# --- every format a camera or an editor writes ---------------------------------------------
+
+def _formats(folder):
+    """(file, expected RGB mean) for one picture written in many formats."""
+    import cv2
+    from PIL import Image
+
+    ramp = np.linspace(0.0, 1.0, 120 * 160).reshape(120, 160)
+    grey8 = np.round(ramp * 255).astype(np.uint8)
+    grey16 = np.round(ramp * 65535).astype(np.uint16)
+    colour = np.dstack([grey8, grey8 // 2, 255 - grey8])
+    out = []
+    cv2.imwrite(str(folder / "grey8.png"), grey8)
+    out.append(("grey8.png", grey8.mean()))
+    cv2.imwrite(str(folder / "grey16.png"), grey16)  # read as a blank white picture before
+    out.append(("grey16.png", grey8.mean()))
+    cv2.imwrite(str(folder / "colour16.png"), (colour.astype(np.uint16) * 257)[..., ::-1])
+    out.append(("colour16.png", colour.mean()))
+    Image.fromarray(np.dstack([colour, np.full((120, 160), 128, np.uint8)]), "RGBA").save(folder / "alpha.png")
+    out.append(("alpha.png", colour.mean()))
+    Image.fromarray(colour).convert("CMYK").save(folder / "cmyk.jpg", quality=95)
+    out.append(("cmyk.jpg", colour.mean()))
+    Image.fromarray(colour).save(folder / "colour.tif")
+    out.append(("colour.tif", colour.mean()))
+    Image.fromarray(grey16).save(folder / "grey16.tif")
+    out.append(("grey16.tif", grey8.mean()))
+    return out
+
+
+def test_every_photo_format_is_read_as_it_looks(tmp_path):
+    from recon.photos import read_photo
+
+    for name, mean in _formats(tmp_path):
+        img = read_photo(tmp_path / name)
+        assert img.shape == (120, 160, 3) and img.dtype == np.uint8, name
+        # 8-bit rounding, and JPEG's and CMYK's conversion for the JPEG.
+        assert abs(img.astype(float).mean() - mean) < (6.0 if name.endswith(".jpg") else 1.0), (name, img.mean(), mean)
+        half = read_photo(tmp_path / name, scale=0.5)
+        assert half.shape == (60, 80, 3) and abs(half.astype(float).mean() - mean) < 6.0, name
