@@ -20,19 +20,14 @@ __all__ = ["GENERIC_SOURCE", "clone_step", "load_source"]
 @functools.lru_cache(maxsize=2)
 def load_source(source: str = GENERIC_SOURCE) -> Head:
     """The head whose motion is cloned: ``"generic"`` for the generic head with its
-    Facial Animation Tables (:func:`mpeg4.generic_head.load_generic_head`), or a head file
-    (``.glb`` with animation tables or morph targets).
+    Facial Animation Tables, or a head file (:func:`fmc.clone.source_head`).
 
     Kept per process (at most two sources), so a long batch reads each source once and a
     worker's memory does not grow with the number of heads.
     """
-    if source == GENERIC_SOURCE:
-        from mpeg4.generic_head import load_generic_head
+    from fmc.clone import source_head
 
-        return load_generic_head(with_fat=True)
-    from mpeg4.io import load_head
-
-    return load_head(source)
+    return source_head(source)
 
 
 def clone_step(head: Head, source: str | os.PathLike = GENERIC_SOURCE) -> tuple[Head, list[str]]:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import typer
 
-from fmc.cli import ALIGNMENT_OPTION, ANTIALIAS_OPTION, TRIANGULATION_OPTION
+from fmc.cli import ALIGNMENT_OPTION, ANTIALIAS_OPTION, SOURCE_OPTION, TRIANGULATION_OPTION
 from fmc.cli import app as fmc_app
 from mpeg4.errors import InputError
 from mpeg4.render import RendererUnavailable
@@ -87,7 +87,7 @@ def mark(mesh: Path = typer.Argument(..., help="Head mesh (.glb, .gltf, .obj or 
 
 
 @app.command("clone")
-def clone_cmd(source: Path = typer.Option(..., "--source", help="Head with motion: morph targets and/or FATs (.glb)."),
+def clone_cmd(source: str = SOURCE_OPTION,
               target: Path = typer.Option(..., "--target", help="Head to clone onto: with feature points (a GLB of "
                                                                 "this project, or a mesh with its MESH.fdp.json), or "
                                                                 "any head mesh, marked first (fmc mark)."),

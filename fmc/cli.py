@@ -121,22 +121,25 @@ ANTIALIAS_OPTION = typer.Option(
 ALIGNMENT_OPTION = typer.Option("surface", "--alignment", help="How the points between the feature points follow "
                                                                "them: surface (bi-harmonic over each mesh) or affine "
                                                                "(over the feature-point triangles).")
+SOURCE_OPTION = typer.Option("generic", "--source", help="Head with motion: morph targets and/or FATs (.glb; tables "
+                                                           "also from <stem>_fat.npz beside it), or 'generic': the "
+                                                           "generic head with its tables (the default).")
 TRIANGULATION_OPTION = typer.Option("mpeg4", "--triangulation", help="Feature-point triangulation: mpeg4 (shipped) "
                                                                       "or delaunay.")
 
 
 @app.command("clone")
-def clone_cmd(source: Path = typer.Option(..., "--source", help="Head with motion: morph targets and/or FATs (.glb)."),
+def clone_cmd(source: str = SOURCE_OPTION,
               target: Path = typer.Option(..., "--target", help="Head with feature points (.glb, or .obj + fdp.json)."),
               out: Path = typer.Option(..., "-o", "--out", help="Target with the cloned motion (.glb)."),
               antialias: float = ANTIALIAS_OPTION, alignment: str = ALIGNMENT_OPTION,
               triangulation: str = TRIANGULATION_OPTION) -> None:
     """Clone morph targets and Facial Animation Tables from one head onto another (Pandzic's
     Facial Motion Cloning; see the README for the measured accuracy)."""
-    from fmc.clone import clone
+    from fmc.clone import clone, source_head
     from mpeg4.io import load_head, save_head
 
-    head, warnings = clone(load_head(source), load_head(target), antialias=antialias, triangulation=triangulation,
+    head, warnings = clone(source_head(source), load_head(target), antialias=antialias, triangulation=triangulation,
                            alignment=alignment)
     for w in warnings:
         typer.echo(f"fmc: warning: {w}", err=True)

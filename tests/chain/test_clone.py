@@ -57,3 +57,24 @@ def test_clone_onto_an_unmarked_mesh_without_a_detector_is_one_line(mesh, tmp_pa
     assert "no 2D landmark detector" in out.stderr and "recon annotate" in out.stderr
 
 
+
+
+def test_the_generic_head_is_the_default_source_with_its_tables(tmp_path):
+    """``fmc clone --target T -o OUT`` clones the generic head's tables; naming its GLB as the
+    source finds the tables stored beside it."""
+    from typer.testing import CliRunner
+
+    from fmc.clone import source_head
+    from fmc.cli import app
+    from mpeg4.generic_head import load_generic_head
+    from mpeg4.io import load_head, save_head
+
+    generic = load_generic_head(with_fat=True)
+    assert len(source_head(None).fat) == len(generic.fat) == len(source_head(generic_head_path()).fat) >= 88
+    target = generic.with_vertices({k: p.vertices * 0.95 for k, p in generic.parts.items()})
+    target.morph_targets, target.fat = {}, None
+    save_head(target, tmp_path / "tgt.glb")
+    out = CliRunner().invoke(app, ["clone", "--target", str(tmp_path / "tgt.glb"), "-o", str(tmp_path / "out.glb")])
+    assert out.exit_code == 0, out.output
+    head = load_head(tmp_path / "out.glb")
+    assert head.fat is not None and len(head.fat) == len(generic.fat)
