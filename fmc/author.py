@@ -33,6 +33,8 @@ from mpeg4.errors import InputError
 from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
 from mpeg4.head import Head, SparseDisplacement
 
+from .lip_contours import split_lip_pairs
+
 __all__ = ["REGIONS", "ADJACENT", "region_of", "unrelated", "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit",
            "BROW_POINTS", "BROW_RAISE_SHAPES", "brow_partition",
            "author_from_shapes",
@@ -134,13 +136,37 @@ class FapFit:
     weights: dict | None = None
 
 
-def _fp_matrix(head: Head, names: list[str], ids: list[str]) -> np.ndarray:
-    """(3 K, S): motion of each FP (rows x, y, z per FP) under each shape at weight 1."""
+#: The parts that move with the lower jaw (the jaw FAPs 3, 14 and 15 carry them along).
+JAW_PARTS = ("teeth_lower", "gums_lower", "tongue")
+_JAW_FAPS = (3, 14, 15)
+
+
+def moving_parts(head: Head, n: int) -> frozenset[str]:
+    """The parts FAP ``n``'s table may move.
+
+    Eyeballs only turn (FAPs 23-28, transforms) and dilate (29/30, their own part); teeth,
+    gums and tongue only follow the jaw (3, 14, 15) or, for the tongue, its own FAPs. Every
+    other FAP moves the part of its feature point alone (the skin): a sculpted shape's
+    small motions of other parts (the ICT FaceKit's mouth shapes nudge the gums, its pupil
+    dilation the skin) are noise there, and a combination of shapes must not move an
+    eyeball to fit a lip corner.
+    """
+    own = head.feature_points[FAPS[n].feature_points[0]].part
+    if n in _JAW_FAPS:
+        return frozenset({own, *(p for p in JAW_PARTS if p in head.parts)})
+    return frozenset({own})
+
+
+def _fp_matrix(head: Head, names: list[str], ids: list[str], parts=None) -> np.ndarray:
+    """(3 K, S): motion of each FP (rows x, y, z per FP) under each shape at weight 1,
+    counting only the motion of ``parts`` (all parts if None)."""
     a = np.zeros((3 * len(ids), len(names)))
     for s, name in enumerate(names):
         target = head.morph_targets[name]
         for k, i in enumerate(ids):
             b = head.feature_points[i]
+            if parts is not None and b.part not in parts:
+                continue
             d = target.get(b.part)
             if d is None:
                 continue
@@ -151,18 +177,26 @@ def _fp_matrix(head: Head, names: list[str], ids: list[str]) -> np.ndarray:
     return a
 
 
-def _combine(head: Head, names: list[str], w: np.ndarray) -> dict[str, SparseDisplacement]:
-    """Part → displacement of the weighted sum of shapes."""
+def _combine(head: Head, names: list[str], w: np.ndarray, parts=None) -> dict[str, SparseDisplacement]:
+    """Part → displacement of the weighted sum of shapes, over ``parts`` (all if None)."""
     out: dict[str, np.ndarray] = {}
     for name, wi in zip(names, w):
         if wi <= 0:
             continue
         for part, d in head.morph_targets[name].items():
+            if parts is not None and part not in parts:
+                continue
             dense = out.setdefault(part, np.zeros((head.parts[part].n_vertices, 3)))
             dense[d.indices] += wi * d.vectors
     # Motions under 10 µm at the authoring value are below anything a renderer shows and
     # would only bloat the tables (a combination of shapes touches most of the face).
     return {p: SparseDisplacement.from_dense(v, tol=1e-5) for p, v in out.items()}
+
+
+def _peak(head: Head, name: str, parts) -> float:
+    """Largest vertex motion of shape ``name`` over ``parts`` (all parts if None), metres."""
+    return max((float(np.abs(d.vectors).max(initial=0.0)) for p, d in head.morph_targets[name].items()
+                if parts is None or p in parts), default=0.0)
 
 
 def _falloff(head: Head, fp_id: str, motion: np.ndarray) -> dict[str, SparseDisplacement]:
@@ -242,7 +276,18 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
     fapu = head.fapu
     ids = [i for i in FP_IDS if i in head.feature_points]
     names = sorted(head.morph_targets)
-    a = _fp_matrix(head, names, ids) if names else np.zeros((3 * len(ids), 0))
+    a_by_parts: dict[frozenset, tuple[list[str], np.ndarray]] = {}
+
+    def shapes_for(parts: frozenset) -> tuple[list[str], np.ndarray]:
+        # The candidate shapes move these parts: a shape whose motion there is under a
+        # tenth of its largest motion is about another part (a pupil dilation for a
+        # lip corner) and would only be scaled up to use its noise.
+        if parts not in a_by_parts:
+            keep = [nm for nm in names if _peak(head, nm, parts) >= 0.1 * _peak(head, nm, None) > 0]
+            a_by_parts[parts] = (keep, _fp_matrix(head, keep, ids, parts) if keep
+                                 else np.zeros((3 * len(ids), 0)))
+        return a_by_parts[parts]
+
     fat, report = FAT(), []
     for n in (range(3, 69) if faps is None else faps):
         fap = FAPS[n]
@@ -265,8 +310,10 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
         signs = (1.0,) if fap.direction == "U" else (-1.0, 1.0)
         k = ids.index(fp_id)
         bad = unrelated(fp_id, ids)
+        parts = moving_parts(head, n)
+        names, a = shapes_for(parts)
         meshes_by_sign, route, err_all, leak_all, weights = {}, "shapes", 0.0, 0.0, None
-        jaw = [s for s in _JAW_SHAPES.get(n, ()) if s in head.morph_targets]
+        jaw = [s for s in _JAW_SHAPES.get(n, ()) if s in names]
         brow = n in _BROW_RAISE and all(s in head.morph_targets for s in BROW_RAISE_SHAPES) \
             and all(i in head.feature_points for i in BROW_POINTS)
         for sign in signs:
@@ -279,13 +326,13 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
                 # The jaw turns as it opens: keep the sculpted motion, scaled so the chin
                 # moves by the FAP's amount along its axis, whatever it does across it.
                 cols = [names.index(s) for s in jaw]
-                disp, fit_err, leak, w_sub = _solve(head, jaw, a[:, cols], ids, k, bad, goal)
+                disp, fit_err, leak, w_sub = _solve(head, jaw, a[:, cols], ids, k, bad, goal, parts)
                 w = np.zeros(len(names))
                 w[cols] = w_sub
                 if np.isfinite(fit_err):
                     fit_err = 0.0  # along the axis it is exact by construction
             else:
-                disp, fit_err, leak, w = _solve(head, names, a, ids, k, bad, goal)
+                disp, fit_err, leak, w = _solve(head, names, a, ids, k, bad, goal, parts)
             if fit_err > tol or leak > leak_tol:
                 disp = _falloff(head, fp_id, goal)
                 motion = _fp_motion(head, disp, ids)
@@ -298,7 +345,8 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
             err_all, leak_all = max(err_all, fit_err), max(leak_all, leak)
         fat.add(_mesh_table(head, n, meshes_by_sign, value, unit))
         report.append(FapFit(n, route, err_all, leak_all, weights))
-    return fat, report
+    # Each of the sculpted shapes moves the whole lip: inner and outer lip FAPs share it.
+    return split_lip_pairs(head, fat), report
 
 
 def brow_partition(head: Head, x: np.ndarray) -> np.ndarray:
@@ -380,7 +428,7 @@ def _brow_piece(head, n, goal, ids, k, bad):
     return disp, err, leak, abs(scale)
 
 
-def _solve(head, names, a, ids, k, bad, goal):
+def _solve(head, names, a, ids, k, bad, goal, parts=None):
     """NNLS for the shape weights; the displacement, its FP error, leak and weights."""
     if a.shape[1] == 0:
         return {}, np.inf, np.inf, np.zeros(0)
@@ -400,7 +448,7 @@ def _solve(head, names, a, ids, k, bad, goal):
     motion = (a @ w).reshape(-1, 3)
     err = float(np.linalg.norm(motion[k] - goal) / g)
     leak = float(np.linalg.norm(motion[bad], axis=1).max(initial=0) / g)
-    return _combine(head, names, w), err, leak, w
+    return _combine(head, names, w, parts), err, leak, w
 
 
 def _mesh_table(head, n, by_sign, value, unit, high_level: int = 0) -> FaceDefTable:
@@ -459,7 +507,8 @@ def _special(head: Head, n: int, value: float):
         return None, FapFit(n, "none")
     rim = float(np.linalg.norm(d.vectors, axis=1).max())
     w = 0.5 * value * unit / rim
-    disp = {p: dd.scaled(w) for p, dd in head.morph_targets[shape].items()}
+    # The eyeball alone: the sculpted dilation also nudges the skin and gums (noise).
+    disp = {part: d.scaled(w)}
     neg = {p: dd.scaled(-1.0) for p, dd in disp.items()}
     return _mesh_table(head, n, {1.0: disp, -1.0: neg}, value, unit), FapFit(n, "shapes", weights={shape: w})
 
@@ -488,6 +537,22 @@ def _load_high_level() -> dict:
 HIGH_LEVEL_SHAPES = _load_high_level()
 
 
+def _high_level_displacement(head: Head, weights: dict) -> dict[str, SparseDisplacement]:
+    """The weighted shapes of a viseme or expression, the skin from every shape and the
+    jaw's parts (:data:`JAW_PARTS`) from the jaw shapes only; eyeballs and the upper teeth
+    never move (their motion in other shapes is sculpting noise)."""
+    jaw_shapes = {s for shapes in _JAW_SHAPES.values() for s in shapes}
+    skin = {p for p in head.parts if p not in JAW_PARTS and not p.startswith(("eye_", "teeth_", "gums_"))
+            and p != "tongue"}
+    out: dict[str, SparseDisplacement] = {}
+    for group, parts in ((sorted(weights), skin), (sorted(set(weights) & jaw_shapes), set(JAW_PARTS))):
+        if not group:
+            continue
+        for part, d in _combine(head, group, np.array([weights[n] for n in group]), parts).items():
+            out[part] = out[part] + d if part in out else d
+    return out
+
+
 def author_high_level(head: Head) -> FAT:
     """FaceDefTables for the 15 visemes and 7 expressions (neutral included) from the
     head's sculpted shapes by :data:`HIGH_LEVEL_SHAPES`; intensity 63 gives the full pose."""
@@ -500,7 +565,7 @@ def author_high_level(head: Head) -> FAT:
             raise InputError(f"{'viseme' if fap == 1 else 'expression'} {k} needs the shapes {', '.join(missing)}, "
                              "which the head lacks", fix="author it from a head with ARKit-named shapes, or clone it")
         names = list(weights)
-        disp = _combine(head, names, np.array([weights[n] for n in names])) if names else {}
+        disp = _high_level_displacement(head, weights) if names else {}
         if disp:
             fat.add(_mesh_table(head, fap, {1.0: disp}, 63.0, HIGH_LEVEL_UNIT, high_level=k))
         else:

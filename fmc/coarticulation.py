@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mpeg4.io.fap import FapStream
+from mpeg4.io.fap import LIP_CONTOUR_PAIRS, FapStream
 
 __all__ = ["Dominance", "GROUPS", "group_of", "viseme_weights", "speech_stream", "LIP_PAIRS", "close_bilabials"]
 
@@ -126,7 +126,10 @@ def close_bilabials(player, stream: FapStream, phonemes, iterations: int = 6) ->
     times = stream.frame_numbers / stream.fps
     share = viseme_weights(phonemes, times)[:, 1] / 63.0
     held = stream.held()
-    for f in _CLOSING_FAPS:  # set in every frame, so no player's notion of "unset" matters
+    # Set in every frame, so no player's notion of "unset" matters; the outer-lip partners
+    # too, with the inner contour's values (the whole lip closes).
+    written = _CLOSING_FAPS + tuple(LIP_CONTOUR_PAIRS[f] for f in _CLOSING_FAPS if f in LIP_CONTOUR_PAIRS)
+    for f in written:
         stream.values[:, f - 1] = held.values[:, f - 1]
     for i in np.flatnonzero(share > 0.02):
         values = held.frame_values(i)
@@ -154,6 +157,9 @@ def close_bilabials(player, stream: FapStream, phonemes, iterations: int = 6) ->
                 partner = {4: 5, 8: 10, 9: 11, 16: 17}[f]
                 values[f] = v + step
                 values[partner] = values.get(partner, 0.0) + (step if f != 16 else -step)
-        for f in _CLOSING_FAPS:
+                for g in (f, partner):
+                    if g in LIP_CONTOUR_PAIRS:
+                        values[LIP_CONTOUR_PAIRS[g]] = values[g]
+        for f in written:
             stream.values[i, f - 1] = values.get(f, 0.0)
     return stream

@@ -25,6 +25,7 @@ except ImportError:  # pragma: no cover - other scipy layouts
 from mpeg4.errors import InputError
 from mpeg4.fat import _key, fap_unit
 from mpeg4.head import Head
+from mpeg4.io.fap import fill_lip_contours
 
 __all__ = ["Player"]
 
@@ -113,8 +114,12 @@ class Player:
         ----------
         values : mapping
             FAP number → value (FAPU), or ``(1, v)`` / ``(2, e)`` → intensity; FAPs without
-            a table are ignored, like :func:`mpeg4.fat.apply_fat` does.
+            a table are ignored, like :func:`mpeg4.fat.apply_fat` does. A lip FAP given
+            without its inner/outer partner gives it its value
+            (:func:`mpeg4.io.fap.fill_lip_contours`): a frame that moves one lip contour
+            moves the whole lip.
         """
+        values = fill_lip_contours(values)
         out_t = self._neutral_t.copy()
         flat = out_t.reshape(-1)
         keys = []

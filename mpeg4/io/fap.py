@@ -20,7 +20,9 @@ count in the header that disagrees with the frames present is an error, or with
 Anything else is an error naming the line.
 
 An unmasked FAP is *unset* (NaN) in :attr:`FapStream.values`; :meth:`FapStream.held` gives the
-common player reading, each FAP keeping its last value (0 before its first).
+common player reading: in a frame that sets only one FAP of an inner/outer lip pair
+(:data:`LIP_CONTOUR_PAIRS`: 4-13 and 51-60), the other takes its value, so a stream written for
+either contour moves the whole lip; then each FAP keeps its last value (0 before its first).
 """
 
 from __future__ import annotations
@@ -36,7 +38,7 @@ from ..catalogue import EXPRESSIONS, FAPS, VISEMES
 from ..errors import InputError, require_file
 from .atomic import atomic_write
 
-__all__ = ["FapStream", "parse_fap", "read_fap", "format_fap", "write_fap", "describe_fap", "N_FAPS", "FPS_RANGE",
+__all__ = ["LIP_CONTOUR_PAIRS", "fill_lip_contours", "FapStream", "parse_fap", "read_fap", "format_fap", "write_fap", "describe_fap", "N_FAPS", "FPS_RANGE",
            "MAX_FRAME_NUMBER", "MAX_FAP_VALUE", "check_values"]
 
 N_FAPS = 68
@@ -49,6 +51,28 @@ MAX_FRAME_NUMBER = 2 ** 31 - 1
 #: FAPU, 1/1024 of them); no face moves further, and beyond it playback overflows.
 MAX_FAP_VALUE = 1e6
 _WIDTH = {1: 4, 2: 6}  # numbers contributed by FAPs 1 and 2
+
+
+#: Inner-lip FAP → the outer-lip FAP that moves the same way on the outer contour
+#: (``lower_t_midlip`` 4 ↔ ``lower_t_midlip_o`` 51, …, ``raise_r_cornerlip`` 13 ↔ 60).
+LIP_CONTOUR_PAIRS = {n: n + 47 for n in range(4, 14)}
+
+
+def fill_lip_contours(values: dict) -> dict:
+    """A copy of one frame's FAP values (FAP → value) in which a lip FAP set without its
+    inner/outer partner (:data:`LIP_CONTOUR_PAIRS`) gives the partner its value.
+
+    The tables move the inner contour by the inner FAPs and the outer one by the outer
+    FAPs (``fmc.lip_contours``); a stream that animates only one contour means the whole
+    lip, as the players that write such streams show it.
+    """
+    out = dict(values)
+    for inner, outer in LIP_CONTOUR_PAIRS.items():
+        if inner in values and outer not in values:
+            out[outer] = values[inner]
+        elif outer in values and inner not in values:
+            out[inner] = values[outer]
+    return out
 
 
 @dataclass
@@ -120,8 +144,14 @@ class FapStream:
         return m
 
     def held(self) -> FapStream:
-        """A copy where every FAP keeps its last set value (0 before it is first set)."""
+        """A copy where every FAP keeps its last set value (0 before it is first set), after
+        a frame's lip FAP set without its inner/outer partner has given it its value
+        (:func:`fill_lip_contours`)."""
         out = np.array(self.values)
+        for inner, outer in LIP_CONTOUR_PAIRS.items():
+            a, b = out[:, inner - 1], out[:, outer - 1]
+            only_a, only_b = ~np.isnan(a) & np.isnan(b), np.isnan(a) & ~np.isnan(b)
+            b[only_a], a[only_b] = a[only_a], b[only_b]
         out[:, :2] = np.nan
         for k in range(2, N_FAPS):
             col = out[:, k]

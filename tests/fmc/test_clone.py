@@ -9,6 +9,7 @@ import pytest
 
 from fmc.clone import (alignment_space, clone, clone_targets, correspond, find_parts, interpolation_matrix,
                        load_fp_triangulation, rigid_motion, triangulation_for, vertex_positions, warp)
+from fmc.conformance import part_leaks
 from mpeg4 import FAPS, InputError, apply_fat
 from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.fat import fap_unit
@@ -434,6 +435,9 @@ def test_cloned_tables_are_mpeg4_compliant(authored_head, bench, ict, seed):
     assert len(errors) >= 60
     bad = {n: round(100 * e, 1) for n, e in errors.items() if e > 0.05}
     assert not bad, bad
+    # Parts move only as parts on the clone too (eyeballs, teeth, tongue).
+    leaks = {n: {p: round(m * 1e3, 3) for p, m in d.items()} for n, d in part_leaks(out, 300.0).items() if d}
+    assert not leaks, leaks
 
 
 # --- parts and bad input -----------------------------------------------------------------

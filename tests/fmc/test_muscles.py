@@ -8,6 +8,7 @@ from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.fat import fap_unit
 from mpeg4.generic_head import load_generic_head
 from fmc.author import unrelated
+from fmc.lip_contours import innerness
 from fmc.muscles import (GROUPS, HIGH_LEVEL_FAPS, Muscle, MuscleRig, author_from_muscles,
                          author_high_level_from_muscles, eyeball_centre, load_placement, place_muscles, split_lips)
 
@@ -220,10 +221,17 @@ def test_head_turn_fades_over_the_neck_and_matches_the_model(rigged):
 def test_tables_reproduce_the_model_at_the_authoring_value(rigged):
     head, rig, _ = rigged
     neutral = {n: p.vertices for n, p in head.parts.items()}
-    for values in ({3: 512.0}, {19: 512.0}, {31: 512.0}, {59: -512.0}, {23: 9000.0}):
+    for values in ({3: 512.0}, {19: 512.0}, {31: 512.0}, {61: 512.0}, {23: 9000.0}):
         table = apply_fat(head.fat, neutral, values, head.fapu)
         model = rig.deform_faps(values)
         assert max(np.abs(table[k] - model[k]).max() for k in table) < 1e-6, values
+    # A lip FAP's table keeps its contour's share of the model's whole-lip motion.
+    w = innerness(head)
+    for n, share in ((12, w), (59, 1.0 - w)):
+        table = apply_fat(head.fat, neutral, {n: -512.0}, head.fapu)
+        model = rig.deform_faps({n: -512.0})
+        expected = neutral["skin"] + share[:, None] * (model["skin"] - neutral["skin"])
+        assert np.abs(table["skin"] - expected).max() < 1e-6, n
 
 
 def test_lids_close_the_eye(rigged):
@@ -392,3 +400,12 @@ def test_a_head_split_along_seams_gets_the_same_weights(rigged):
     n = skin.n_vertices
     np.testing.assert_allclose(other.jaw_weights[:n], rig.jaw_weights, atol=1e-9)
     np.testing.assert_allclose(other.jaw_weights[n:], rig.jaw_weights[seam], atol=1e-9)
+
+
+def test_no_fap_moves_a_part_it_does_not_own(rigged):
+    from fmc.conformance import part_leaks
+
+    head, _, _ = rigged
+    leaks = part_leaks(head, 300.0)
+    moved = {n: {p: round(m * 1e3, 3) for p, m in d.items()} for n, d in leaks.items() if d}
+    assert len(leaks) >= 60 and not moved, moved

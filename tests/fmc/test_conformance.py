@@ -1,0 +1,99 @@
+"""FAPs act as the standard means together: parts move only as parts, inner and outer lip
+FAPs share the lip, a stream that sets one contour moves the whole lip."""
+
+import numpy as np
+import pytest
+
+from fmc.conformance import eyeball_centre_shift, fp_conformance, fp_prediction, part_leaks
+from fmc.lip_contours import INNER_LOOP, OUTER_LOOP, innerness
+from fmc.play import Player
+from mpeg4 import FAPS, apply_fat
+from mpeg4.generic_head import load_generic_head
+from mpeg4.io.fap import LIP_CONTOUR_PAIRS, FapStream
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    return load_generic_head(with_fat=True)
+
+
+def test_no_fap_moves_a_part_it_does_not_own(authored_head, shipped):
+    """Every FAP at ±300, fresh and shipped tables: eyeballs, teeth, gums and tongue move
+    only by their own FAPs, the jaw's and the head's (a lip corner once moved the right
+    eyeball 8 mm through a pupil-dilation shape's noise)."""
+    for head in (authored_head, shipped):
+        leaks = part_leaks(head, 300.0)
+        assert len(leaks) >= 60
+        moved = {n: {p: round(m * 1e3, 3) for p, m in d.items()} for n, d in leaks.items() if d}
+        assert not moved, moved
+
+
+def test_eyeballs_keep_their_centres_in_a_busy_frame(shipped):
+    values = {n: 300.0 for n in range(3, 69) if n not in (27, 28, 48, 49, 50)}
+    values.update({23: 20000.0, 24: 20000.0, 25: -15000.0, 26: -15000.0})
+    moved = apply_fat(shipped.fat, {n: p.vertices for n, p in shipped.parts.items()}, values, shipped.fapu)
+    assert eyeball_centre_shift(shipped, moved) < 0.2e-3
+    # The measure sees a moved eyeball.
+    moved["eye_l"] = moved["eye_l"] + [0.0, 0.001, 0.0]
+    assert eyeball_centre_shift(shipped, moved) == pytest.approx(1e-3, abs=0.2e-3)
+
+
+def test_innerness_runs_from_the_inner_contour_to_the_outer(shipped):
+    w = innerness(shipped)
+    assert w.min() >= 0.0 and w.max() <= 1.0
+    for i in INNER_LOOP:
+        b = shipped.feature_points[i]
+        assert np.allclose(w[list(b.vertices)], 1.0)
+    for i in OUTER_LOOP:
+        assert np.allclose(w[list(shipped.feature_points[i].vertices)], 0.0)
+    between = (w > 0.05) & (w < 0.95)
+    assert between.sum() > 100  # a smooth band across the lips, not a cut
+    v = shipped.parts["skin"].vertices
+    far = np.linalg.norm(v[:, :2] - shipped.fp_position("9.3")[:2], axis=1) < 0.01  # the nose tip
+    assert np.all(w[far] == 0.0)
+
+
+@pytest.mark.parametrize("inner", sorted(LIP_CONTOUR_PAIRS))
+def test_inner_and_outer_lip_faps_together_move_the_lip_once(authored_head, inner):
+    """FAP n and n + 47 together move the inner and the outer point each by value × FAPU
+    along the axis (within max(10 %, 0.5 mm)); each alone moves its own contour and leaves
+    the other's point within 0.5 mm."""
+    head = authored_head
+    outer = LIP_CONTOUR_PAIRS[inner]
+    neutral = {n: p.vertices for n, p in head.parts.items()}
+    for value in (-300.0, 300.0):
+        ok, total = fp_conformance(head, {inner: value, outer: value})
+        assert (ok, total) == (2, 2), value
+        for own, other in ((inner, outer), (outer, inner)):
+            moved = apply_fat(head.fat, neutral, {own: value}, head.fapu)
+            fp_other = FAPS[other].feature_points[0]
+            assert np.linalg.norm(head.fp_position(fp_other, moved) - head.fp_position(fp_other)) < 0.5e-3
+            assert fp_conformance(head, {own: value}) == (1, 1)
+
+
+def test_a_stream_of_one_contour_moves_the_whole_lip(shipped):
+    """A frame that sets only the inner (or only the outer) FAP plays as if both were set
+    to it; a frame that sets both plays them as given."""
+    player = Player(shipped)
+    values = np.full((3, 68), np.nan)
+    values[0, 12 - 1] = 300.0                      # inner only
+    values[1, 59 - 1] = 300.0                      # outer only
+    values[2, [12 - 1, 59 - 1]] = (300.0, 0.0)     # both: the outer held still
+    stream = FapStream.from_values(values)
+    frames = list(player.play(stream))
+    both = player.vertices({12: 300.0, 59: 300.0})
+    assert np.abs(frames[0] - both).max() < 1e-12
+    assert np.abs(frames[1] - both).max() < 1e-12
+    assert np.abs(frames[2] - player.vertices({12: 300.0, 59: 0.0})).max() < 1e-12
+    assert np.abs(frames[2] - frames[0]).max() > 1e-3
+    held = stream.held()
+    assert held.values[0, 59 - 1] == 300.0 and held.values[1, 12 - 1] == 300.0 and held.values[2, 59 - 1] == 0.0
+
+
+def test_prediction_adds_up_the_faps_of_a_point(shipped):
+    pred = fp_prediction(shipped, {12: 100.0, 6: 50.0, 3: 0.0, 48: 1000.0})
+    motion, axes = pred["2.4"]
+    mns, mw = shipped.fapu.MNS0 / 1024, shipped.fapu.MW0 / 1024
+    assert np.allclose(motion, [50 * mw, 100 * mns, 0.0]) and axes.tolist() == [True, True, False]
+    assert set(pred) == {"2.4"}
+
