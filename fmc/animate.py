@@ -19,17 +19,43 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from mpeg4.errors import InputError
-from mpeg4.fat import _key, fap_unit, fat_to_morph_targets, morph_weights
+from mpeg4.fat import _key, fap_unit, fat_to_morph_targets, morph_weights, widen_outer_borders
 from mpeg4.head import Head
 from mpeg4.io.fap import check_values
 from mpeg4.io.gltf import GlbAnimation
 
-__all__ = ["stream_animation", "render_preview_frames", "write_gif", "write_video", "write_animation", "play_stream",
+from .frames import FrameDecoder
+
+__all__ = ["covering_head", "stream_animation", "render_preview_frames", "write_gif", "write_video", "write_animation", "play_stream",
            "say", "animate_timeline"]
 
 
-def stream_animation(head: Head, stream) -> tuple[GlbAnimation, list[str]]:
-    """Keyframes of a :class:`mpeg4.io.fap.FapStream` for ``head`` (values held between frames).
+def covering_head(head: Head, stream, limits: bool = True) -> Head:
+    """``head`` with its tables' outer borders widened to the largest values ``stream``
+    plays (as :class:`fmc.frames.FrameDecoder` reads them), so that every morph weight of
+    its animation stays within [0, 1] (:func:`mpeg4.fat.widen_outer_borders`): Blender, which
+    clamps shape-key values to [0, 1], and three.js then play the same face."""
+    import copy
+
+    if head.fat is None or not len(head.fat):
+        return head
+    held = stream.held()
+    decode = FrameDecoder(head, limits=limits)
+    extents: dict = {}
+    for i in range(held.n_frames):
+        for k, v in decode(held.frame_values(i)).items():
+            key = _key(k)
+            lo, hi = extents.get(key, (0.0, 0.0))
+            extents[key] = (min(lo, float(v)), max(hi, float(v)))
+    out = copy.copy(head)
+    out.fat = widen_outer_borders(head.fat, extents)
+    return out
+
+
+def stream_animation(head: Head, stream, limits: bool = True) -> tuple[GlbAnimation, list[str]]:
+    """Keyframes of a :class:`mpeg4.io.fap.FapStream` for ``head`` (values held between frames,
+    played as :class:`fmc.frames.FrameDecoder` reads them; ``limits=False`` plays them
+    without the limits a face has).
 
     Returns
     -------
@@ -45,6 +71,7 @@ def stream_animation(head: Head, stream) -> tuple[GlbAnimation, list[str]]:
         raise InputError("the stream has no frames", fix="give a .fap file with at least one frame")
     times = (held.frame_numbers - held.frame_numbers[0]) / stream.fps
     _, specs = fat_to_morph_targets(head.fat, head.fapu)
+    decode = FrameDecoder(head, limits=limits)  # the values as the player plays them
     weights = {s.target: np.zeros(held.n_frames) for s in specs}
     rotations = {}
     movers = {"pivot": None}
@@ -55,7 +82,7 @@ def stream_animation(head: Head, stream) -> tuple[GlbAnimation, list[str]]:
         rotations[node] = np.tile([0.0, 0.0, 0.0, 1.0], (held.n_frames, 1))
     warnings = set()
     for i in range(held.n_frames):
-        values = held.frame_values(i)
+        values = decode(held.frame_values(i))
         for target, w in morph_weights(specs, values).items():
             weights[target][i] = w
         mats = {node: np.eye(3) for node in movers}
@@ -74,6 +101,8 @@ def stream_animation(head: Head, stream) -> tuple[GlbAnimation, list[str]]:
                 mats[node] = t.affine(values[k], unit)[0] @ mats[node]
         for node, m in mats.items():
             rotations[node][i] = Rotation.from_matrix(m).as_quat()
+    for phrase, count in sorted(decode.clamped.items()):
+        warnings.add(f"{phrase} in {count} of {held.n_frames} frames (--no-limits plays the values as given)")
     pivot = head.fp_position("7.1") if "7.1" in head.feature_points else np.zeros(3)
     # Drop channels that never move.
     weights = {k: v for k, v in weights.items() if np.any(v)}
@@ -81,14 +110,15 @@ def stream_animation(head: Head, stream) -> tuple[GlbAnimation, list[str]]:
     return GlbAnimation(times, weights, rotations, pivot, name=stream.name), sorted(warnings)
 
 
-def render_preview_frames(head: Head, stream, size: int = 400, max_fps: float = 15.0, yaw_deg: float = 15.0):
+def render_preview_frames(head: Head, stream, size: int = 400, max_fps: float = 15.0, yaw_deg: float = 15.0,
+                          limits: bool = True):
     """Offscreen renders of a stream: (frames list of (H, W, 3) uint8, frame duration s)."""
     from mpeg4.preview import head_meshes
     from mpeg4.render import Camera, render
 
     from .play import Player
 
-    player = Player(head)
+    player = Player(head, limits=limits)
     held = stream.held()
     step = max(1, int(round(stream.fps / max_fps)))
     _, fps = head.fp_array()
@@ -149,22 +179,24 @@ def write_video(frames, fps: float, path, audio=None) -> str:
 
 
 def write_animation(head: Head, stream, out_dir, preview: bool = True, audio=None, max_fps: float = 15.0,
-                    progress: Callable[[str], None] | None = None) -> dict[str, Path]:
+                    progress: Callable[[str], None] | None = None, limits: bool = True) -> dict[str, Path]:
     """Write ``animation.glb`` for a stream on a head, and with ``preview`` a GIF (and an MP4
-    with ``audio`` muxed in when an audio file is given) into ``out_dir``."""
+    with ``audio`` muxed in when an audio file is given) into ``out_dir``; ``limits=False``
+    plays the values without the limits a face has."""
     from mpeg4.io import write_glb
 
     say_ = progress or (lambda msg: None)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    anim, warnings = stream_animation(head, stream)
+    head = covering_head(head, stream, limits=limits)  # morph weights within [0, 1]
+    anim, warnings = stream_animation(head, stream, limits=limits)
     for w in warnings:
         say_(f"warning: {w}")
     paths = {"animation": out / "animation.glb"}
     write_glb(head, paths["animation"], animation=anim)
     if preview:
         say_("rendering the preview" + (" (GIF, and MP4 with the sound)" if audio is not None else ""))
-        frames, duration = render_preview_frames(head, stream, max_fps=max_fps)
+        frames, duration = render_preview_frames(head, stream, max_fps=max_fps, limits=limits)
         paths["preview"] = out / "preview.gif"
         write_gif(frames, duration, paths["preview"])
         if audio is not None:
@@ -174,7 +206,7 @@ def write_animation(head: Head, stream, out_dir, preview: bool = True, audio=Non
 
 
 def play_stream(head_path, stream_path, out_dir, preview: bool = True, lenient: bool = False,
-                progress: Callable[[str], None] | None = None) -> dict[str, Path]:
+                progress: Callable[[str], None] | None = None, limits: bool = True) -> dict[str, Path]:
     """``fmc play``: the animated GLB (and a preview GIF) of a FAP stream on a head."""
     from mpeg4.io import load_head, read_fap
 
@@ -183,7 +215,7 @@ def play_stream(head_path, stream_path, out_dir, preview: bool = True, lenient: 
     head = load_head(head_path)
     stream = read_fap(stream_path, lenient=lenient)
     say(f"{stream.n_frames} frames at {stream.fps:g} fps")
-    paths = write_animation(head, stream, out_dir, preview=preview, progress=say)
+    paths = write_animation(head, stream, out_dir, preview=preview, progress=say, limits=limits)
     say(f"done in {time.perf_counter() - t0:.1f} s")
     return paths
 
@@ -235,7 +267,7 @@ def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True, 
         from .coarticulation import close_bilabials
         from .play import Player
 
-        close_bilabials(Player(head), stream, utterance.phonemes)
+        close_bilabials(Player(head, limits=False), stream, utterance.phonemes)  # it closes, never crosses
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = {"audio": out / "speech.wav", "stream": out / "speech.fap"}

@@ -71,12 +71,15 @@ def play(head: Path = typer.Argument(..., help="Head with animation tables (.glb
          stream: Path = typer.Argument(..., help="MPEG-4 .fap stream."),
          out: Path = typer.Option(Path("play_out"), "-o", "--out", help="Output folder."),
          preview: bool = typer.Option(True, help="Also render preview.gif."),
-         lenient: bool = typer.Option(False, help="Accept a header frame count that disagrees with the body.")
+         lenient: bool = typer.Option(False, help="Accept a header frame count that disagrees with the body."),
+         limits: bool = typer.Option(True, help="Keep the face within its limits: lids and lips stop where they "
+                                               "meet, eyes and head turn within a range of motion (says when they "
+                                               "acted); --no-limits plays the values as given.")
          ) -> None:
     """Play a .fap stream on a head: animation.glb (morph weights and node rotations) and preview.gif."""
     from fmc.animate import play_stream
 
-    for kind, path in play_stream(head, stream, out, preview=preview, lenient=lenient,
+    for kind, path in play_stream(head, stream, out, preview=preview, lenient=lenient, limits=limits,
                                   progress=lambda m: typer.echo(f"fmc: {m}", err=True)).items():
         typer.echo(f"{kind}: {path}")
 

@@ -25,7 +25,8 @@ except ImportError:  # pragma: no cover - other scipy layouts
 from mpeg4.errors import InputError
 from mpeg4.fat import _key, fap_unit
 from mpeg4.head import Head
-from mpeg4.io.fap import fill_lip_contours
+
+from .frames import FrameDecoder
 
 __all__ = ["Player"]
 
@@ -37,6 +38,9 @@ class Player:
     ----------
     head : Head
         With ``head.fat``.
+    limits : bool
+        Keep frames within the limits a face has (:class:`fmc.limits.Limits`); which
+        acted, and in how many frames, is counted in ``player.decode.clamped``.
 
     Examples
     --------
@@ -45,11 +49,12 @@ class Player:
     >>> parts = player.part_vertices(player.vertices({3: 300.0, 49: 5000.0}))  # doctest: +SKIP
     """
 
-    def __init__(self, head: Head):
+    def __init__(self, head: Head, limits: bool = True):
         if head.fat is None or not len(head.fat):
             raise InputError("the head has no Facial Animation Tables to play",
                              fix="author them (fmc author) or clone them from a source head")
         self.head = head
+        self.decode = FrameDecoder(head, limits=limits)
         fapu = head.fapu
         self.part_names = list(head.parts)
         sizes = [head.parts[n].n_vertices for n in self.part_names]
@@ -117,9 +122,11 @@ class Player:
             a table are ignored, like :func:`mpeg4.fat.apply_fat` does. A lip FAP given
             without its inner/outer partner gives it its value
             (:func:`mpeg4.io.fap.fill_lip_contours`): a frame that moves one lip contour
-            moves the whole lip.
+            moves the whole lip; the limits a face has apply (unless the player was made
+            with ``limits=False``); the lip FAPs set lose what the jaw FAPs already do to
+            their points (:class:`fmc.frames.FrameDecoder`).
         """
-        values = fill_lip_contours(values)
+        values = self.decode(values)
         out_t = self._neutral_t.copy()
         flat = out_t.reshape(-1)
         keys = []

@@ -38,7 +38,7 @@ from .head import SparseDisplacement
 
 __all__ = [
     "FaceDefMesh", "FaceDefTransform", "FaceDefTable", "FAT",
-    "signed_overlaps", "fap_unit", "apply_fat", "rotation_matrix",
+    "signed_overlaps", "fap_unit", "apply_fat", "rotation_matrix", "widen_outer_borders",
     "fat_to_morph_targets", "fat_from_morph_targets", "morph_weights", "MorphSpec",
 ]
 
@@ -287,6 +287,36 @@ def apply_fat(fat: FAT, vertices: Mapping[str, np.ndarray], values: Mapping, fap
     for t, value, unit in late:
         for name in out:
             out[name] = t.apply(out[name], value, unit)
+    return out
+
+
+def widen_outer_borders(fat: FAT, extents: Mapping) -> FAT:
+    """A copy of ``fat`` whose tables' outer interval borders reach the values given.
+
+    The outer intervals extrapolate linearly (reference section 5), so the deformation is
+    the same for every value; what changes is the morph target made from an outer interval
+    (:func:`fat_to_morph_targets`): it holds the displacement at the wider border, so the
+    weights an animation needs stay within [0, 1] (Blender clamps shape-key values above
+    1, three.js plays them as stored).
+
+    Parameters
+    ----------
+    fat : FAT
+    extents : mapping
+        Table key ``(fap, high_level)`` → (smallest, largest) value to cover.
+    """
+    out = FAT()
+    for key, table in fat.items():
+        lo, hi = extents.get(key, (0.0, 0.0))
+        meshes = []
+        for m in table.meshes:
+            b = m.borders.copy()
+            if b[-1] > 0 and hi > b[-1]:
+                b[-1] = hi
+            if b[0] < 0 and lo < b[0]:
+                b[0] = lo
+            meshes.append(FaceDefMesh(m.part, b, m.indices, m.displacements))
+        out.add(FaceDefTable(table.fap, table.high_level, meshes, list(table.transforms)))
     return out
 
 

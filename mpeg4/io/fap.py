@@ -22,7 +22,8 @@ Anything else is an error naming the line.
 An unmasked FAP is *unset* (NaN) in :attr:`FapStream.values`; :meth:`FapStream.held` gives the
 common player reading: in a frame that sets only one FAP of an inner/outer lip pair
 (:data:`LIP_CONTOUR_PAIRS`: 4-13 and 51-60), the other takes its value, so a stream written for
-either contour moves the whole lip; then each FAP keeps its last value (0 before its first).
+either contour moves the whole lip; then each FAP keeps its last value (and stays unset
+before its first: a player reads it as 0, ``fmc`` also knows the stream never set it).
 """
 
 from __future__ import annotations
@@ -144,9 +145,9 @@ class FapStream:
         return m
 
     def held(self) -> FapStream:
-        """A copy where every FAP keeps its last set value (0 before it is first set), after
-        a frame's lip FAP set without its inner/outer partner has given it its value
-        (:func:`fill_lip_contours`)."""
+        """A copy where every FAP keeps its last set value (unset, NaN, before it is first
+        set), after a frame's lip FAP set without its inner/outer partner has given it its
+        value (:func:`fill_lip_contours`)."""
         out = np.array(self.values)
         for inner, outer in LIP_CONTOUR_PAIRS.items():
             a, b = out[:, inner - 1], out[:, outer - 1]
@@ -157,7 +158,7 @@ class FapStream:
             col = out[:, k]
             idx = np.where(~np.isnan(col), np.arange(len(col)), -1)
             np.maximum.accumulate(idx, out=idx)
-            out[:, k] = np.where(idx >= 0, col[np.maximum(idx, 0)], 0.0)
+            out[:, k] = np.where(idx >= 0, col[np.maximum(idx, 0)], np.nan)
         return FapStream(self.fps, self.frame_numbers.copy(), out, self.viseme.copy(), self.expression.copy(),
                          self.name, self.version)
 

@@ -100,3 +100,33 @@ def test_video_with_audio(tmp_path):
     info = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-hide_banner", "-i", path], capture_output=True,
                           text=True).stderr
     assert "Video: h264" in info and "Audio: aac" in info and "80x60" in info
+
+
+def test_weights_stay_within_0_and_1_so_every_viewer_plays_the_same(head, tmp_path, validate_gltf):
+    """Values past the tables' ±512 borders (a Xface jaw of 713, a lip of −866) would need
+    weights above 1, which Blender clamps and three.js does not: the written GLB's tables
+    reach the stream's values instead, and a viewer that clamps sees what the decoder does."""
+    from fmc.animate import covering_head
+
+    n = 10
+    values = np.full((n, 68), np.nan)
+    t = np.linspace(0, 1, n)
+    values[:, 2] = 900 * t  # open_jaw beyond 512
+    values[:, 11] = -800 * t  # raise_l_cornerlip, the other way beyond −512
+    values[:, 18] = 700 * t  # close_t_l_eyelid
+    stream = FapStream.from_values(values, fps=25)
+    plain, _ = stream_animation(head, stream)
+    assert max(w.max() for w in plain.weights.values()) > 1.5  # the problem
+    covered = covering_head(head, stream)
+    anim, _ = stream_animation(covered, stream)
+    assert all(0.0 <= w.min() and w.max() <= 1.0 + 1e-9 for w in anim.weights.values())
+    path = write_glb(covered, tmp_path / "a.glb", animation=anim)
+    assert validate_gltf(path)["issues"]["numErrors"] == 0
+    back, got = read_glb(path), read_glb_animation(path)
+    got.weights = {k: np.clip(w, 0.0, 1.0) for k, w in got.weights.items()}  # as Blender plays them
+    player = Player(head)
+    held = stream.held()
+    for i in (3, 6, 9):
+        want = player.part_vertices(player.vertices(held.frame_values(i)))
+        seen = _gltf_view(back, got, i)
+        assert max(np.abs(seen[n] - want[n]).max() for n in want) < 1e-5  # float32 storage: 0.01 mm

@@ -97,3 +97,51 @@ def test_prediction_adds_up_the_faps_of_a_point(shipped):
     assert np.allclose(motion, [50 * mw, 100 * mns, 0.0]) and axes.tolist() == [True, True, False]
     assert set(pred) == {"2.4"}
 
+
+
+def test_the_jaw_does_not_move_the_lips_a_frame_sets(shipped):
+    """open_jaw moves the jaw, not the lips: with the lip FAPs set, the lower lip moves by its
+    own value (a Xface frame: jaw 713, lower lip −866 moved the lip by both); with none set,
+    the lips ride on the jaw and the mouth opens."""
+    player = Player(shipped)
+    mns = shipped.fapu.MNS0 / 1024
+    frame = {3: 700.0, 5: -800.0, 52: -800.0, 10: -800.0, 11: -800.0}
+    parts = player.part_vertices(player.vertices(frame))
+    drop = shipped.fp_position("2.3", parts)[1] - shipped.fp_position("2.3")[1]
+    assert drop == pytest.approx(-800 * mns, rel=0.10)
+    chin = shipped.fp_position("2.1", parts)[1] - shipped.fp_position("2.1")[1]
+    assert chin == pytest.approx(-700 * mns, rel=0.10)
+    alone = player.part_vertices(player.vertices({3: 700.0}))
+    assert shipped.fp_position("2.3", alone)[1] - shipped.fp_position("2.3")[1] < -0.5 * 700 * mns
+
+
+def test_lids_and_lips_stop_where_they_meet(shipped):
+    """Top lid 1080 and bottom lid 600 (IRISD units) would re-open the eye with the lids
+    passed; the limits stop them where they meet, and say so. --no-limits plays them."""
+    from fmc.conformance import lid_overlap
+
+    frame = {19: 1080.0, 21: 600.0, 4: 300.0, 5: 300.0}
+    limited = Player(shipped)
+    parts = limited.part_vertices(limited.vertices(frame))
+    assert lid_overlap(shipped, parts) < 0.5e-3
+    gap = shipped.fp_position("2.2", parts)[1] - shipped.fp_position("2.3", parts)[1]
+    assert gap > -(0.1 * shipped.fapu.MNS0 + 1e-3)  # lips press in by at most a tenth of MNS0
+    assert any("close_t_l_eyelid" in k for k in limited.decode.clamped)
+    assert any("lower_t_midlip" in k for k in limited.decode.clamped)
+    free = Player(shipped, limits=False)
+    parts = free.part_vertices(free.vertices(frame))
+    assert lid_overlap(shipped, parts) > 2e-3 and not free.decode.clamped
+    gap = shipped.fp_position("2.2", parts)[1] - shipped.fp_position("2.3", parts)[1]
+    assert gap < -(0.1 * shipped.fapu.MNS0 + 3e-3)
+
+
+def test_eyeball_turns_are_clamped_to_a_range_of_motion(shipped):
+    from fmc.limits import TURN_LIMITS_DEG, Limits
+
+    limits = Limits(shipped)
+    au = np.radians(148.0) / 1e-5
+    values, changed = limits({23: au, 49: -au, 3: 100.0})
+    assert np.degrees(values[23] * 1e-5) == pytest.approx(TURN_LIMITS_DEG[23])
+    assert np.degrees(values[49] * 1e-5) == pytest.approx(-TURN_LIMITS_DEG[49])
+    assert values[3] == 100.0 and len(changed) == 2
+    assert limits({23: 1000.0}) == ({23: 1000.0}, [])

@@ -52,7 +52,8 @@ def test_held_values_carry_forward():
     vals[1, 2] = 100
     vals[3, 2] = 50
     held = FapStream.from_values(vals).held()
-    assert held.values[:, 2].tolist() == [0, 100, 100, 50]
+    assert np.isnan(held.values[0, 2]) and held.values[1:, 2].tolist() == [100, 100, 50]
+    assert 3 not in held.frame_values(0) and held.frame_values(2)[3] == 100
 
 
 @st.composite

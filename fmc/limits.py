@@ -1,0 +1,108 @@
+"""Limits a face has: lids and lips stop where they meet, eyes and head turn so far.
+
+A stream may ask for more than a face can do: Greta's anger lowers the upper lip by 290
+and raises the lower one by 609 units, which would push the lips 25 mm through each other;
+real streams turn an eyeball by 148°. :class:`Limits` changes such values before they are
+played, and says what it changed:
+
+- **Meeting pairs** (:data:`MEETING_PAIRS`): an upper and a lower lid margin, an upper and a
+  lower lip point. Where a frame would move the lower point above the upper one, both stop
+  where they meet, each giving way by half. Lips may press into each other by a tenth of
+  MNS0 (about 3 mm), which also covers what a lip FAP's neighbours do to its point, left
+  out of this estimate; lids not at all. Where each point goes is
+  its own FAP's value (or, for a lip FAP the stream never set, where the jaw carries it)
+  plus what the frame's visemes and expressions do to it.
+- **Turns** (:data:`TURN_LIMITS_DEG`): eyeball and head rotations clamped to a range of
+  motion. The standard gives none; these are this project's choice, round figures inside
+  a typical adult's range (eyes about 45° each way, the head 80° of yaw, 60° of pitch,
+  40° of roll).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from mpeg4.catalogue import FAPS
+from mpeg4.fat import fap_unit
+from mpeg4.head import Head
+
+from .decouple import JAW_FAPS, effect_of, table_effect
+
+__all__ = ["MEETING_PAIRS", "TURN_LIMITS_DEG", "Limits"]
+
+#: (upper FAP, lower FAP) whose points must not pass each other: lids, then inner and
+#: outer lip contours (centre, left and right midpoints).
+MEETING_PAIRS = ((19, 21), (20, 22), (4, 5), (8, 10), (9, 11), (51, 52), (55, 57), (56, 58))
+
+#: Largest turn, degrees each way, per rotation FAP.
+TURN_LIMITS_DEG = {23: 45.0, 24: 45.0, 25: 40.0, 26: 40.0, 48: 60.0, 49: 80.0, 50: 40.0}
+
+
+class Limits:
+    """Values a face can play (see the module's docstring).
+
+    Parameters
+    ----------
+    head : Head
+        Its feature points give the neutral heights of the meeting pairs' points.
+    """
+
+    def __init__(self, head: Head):
+        self.pairs = []
+        points = []
+        for upper, lower in MEETING_PAIRS:
+            fu, fl = FAPS[upper].feature_points[0], FAPS[lower].feature_points[0]
+            if fu in head.feature_points and fl in head.feature_points:
+                # Height of each point per unit value (the FAPs move along ±y).
+                press = 0.0 if FAPS[upper].unit == "IRISD" else 0.1 * head.fapu.MNS0
+                self.pairs.append((upper, lower, float(head.fp_position(fu)[1]), float(head.fp_position(fl)[1]),
+                                   fap_unit(upper, head.fapu) * FAPS[upper].axis_vector[1],
+                                   fap_unit(lower, head.fapu) * FAPS[lower].axis_vector[1], press))
+                points += [(head.feature_points[fu], np.array([0.0, 1.0, 0.0])),
+                           (head.feature_points[fl], np.array([0.0, 1.0, 0.0]))]
+        fat = head.fat if head.fat is not None else {}
+        # The heights the jaw and the high-level tables give the pairs' points.
+        self._jaw = {j: table_effect(head, fat[(j, 0)], points) for j in JAW_FAPS if (j, 0) in fat}
+        self._high = {key: table_effect(head, t, points) for key, t in fat.items() if key[0] in (1, 2)}
+        self._n_points = len(points)
+        self.turns = {n: np.radians(deg) / fap_unit(n, head.fapu) for n, deg in TURN_LIMITS_DEG.items()}
+
+    def __call__(self, values: Mapping) -> tuple[dict, list[str]]:
+        """One frame's values within the limits, and what was changed.
+
+        Parameters
+        ----------
+        values : mapping
+            FAP → value, as :meth:`fmc.play.Player.vertices` takes them.
+
+        Returns
+        -------
+        values : dict
+        changed : list of str
+            One short phrase per limit that acted.
+        """
+        out = dict(values)
+        changed = []
+        if self.pairs and any(out.get(pair[0]) or out.get(pair[1]) for pair in self.pairs):
+            jaw = effect_of(self._jaw, out, self._n_points)
+            high = {k: v for k, v in out.items() if isinstance(k, tuple)}
+            high = effect_of(self._high, high, self._n_points) if high else np.zeros(self._n_points)
+            for p, (upper, lower, y_u, y_l, k_u, k_l, press) in enumerate(self.pairs):
+                if upper not in out and lower not in out:
+                    continue
+                own_u = float(out[upper]) * k_u if upper in out else jaw[2 * p]
+                own_l = float(out[lower]) * k_l if lower in out else jaw[2 * p + 1]
+                top, bottom = y_u + own_u + high[2 * p], y_l + own_l + high[2 * p + 1]
+                excess = bottom - top - press
+                if excess > 1e-9:
+                    out[upper] = (top + 0.5 * excess - y_u - high[2 * p]) / k_u
+                    out[lower] = (bottom - 0.5 * excess - y_l - high[2 * p + 1]) / k_l
+                    changed.append(f"{FAPS[upper].name}/{FAPS[lower].name} stopped where they meet")
+        for n, limit in self.turns.items():
+            v = out.get(n)
+            if v and abs(v) > limit:
+                out[n] = float(np.sign(v) * limit)
+                changed.append(f"{FAPS[n].name} clamped to ±{TURN_LIMITS_DEG[n]:g}°")
+        return out, changed
