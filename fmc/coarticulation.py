@@ -101,6 +101,9 @@ def speech_stream(phonemes, duration: float, fps: float = 50.0, name: str = "spe
 #: Lip FAP pairs that close the mouth: (upper lip FAP, its FP, lower lip FAP, its FP).
 LIP_PAIRS = ((4, "2.2", 5, "2.3"), (8, "2.6", 10, "2.8"), (9, "2.7", 11, "2.9"))
 _CLOSING_FAPS = (4, 5, 8, 9, 10, 11, 16, 17)
+#: Largest value, in MNS units, the lip closure gives a lip FAP (1024: the mouth's whole
+#: height at rest, MNS0).
+CLOSING_LIMIT = 1024.0
 
 
 def close_bilabials(player, stream: FapStream, phonemes, iterations: int = 6) -> FapStream:
@@ -125,12 +128,17 @@ def close_bilabials(player, stream: FapStream, phonemes, iterations: int = 6) ->
     mns = head.fapu.MNS0 / 1024.0
     times = stream.frame_numbers / stream.fps
     share = viseme_weights(phonemes, times)[:, 1] / 63.0
+    # Through a stop's closure (its silence, up to the burst) the lips are shut, whatever
+    # the coarticulation mixes in (fmc.speech.stop_closures).
+    for p in phonemes:
+        if getattr(p, "burst", None) is not None:
+            share[(times >= p.start) & (times <= p.burst)] = 1.0
     held = stream.held()
     # Set in every frame, so no player's notion of "unset" matters; the outer-lip partners
     # too, with the inner contour's values (the whole lip closes).
     written = _CLOSING_FAPS + tuple(LIP_CONTOUR_PAIRS[f] for f in _CLOSING_FAPS if f in LIP_CONTOUR_PAIRS)
     for f in written:
-        stream.values[:, f - 1] = held.values[:, f - 1]
+        stream.values[:, f - 1] = np.nan_to_num(held.values[:, f - 1])
     for i in np.flatnonzero(share > 0.02):
         values = held.frame_values(i)
         # Secant steps on each closing pair (the tables are piecewise linear in the value,
@@ -155,8 +163,13 @@ def close_bilabials(player, stream: FapStream, phonemes, iterations: int = 6) ->
                     step = 0.5 * err / mns
                 history[f] = (v, err)
                 partner = {4: 5, 8: 10, 9: 11, 16: 17}[f]
-                values[f] = v + step
-                values[partner] = values.get(partner, 0.0) + (step if f != 16 else -step)
+                # Bounded: a head whose tables cannot close its lips gets the best they can do
+                # within one MNS0 of travel (no mouth needs more), never a runaway secant.
+                new = float(np.clip(v + step, -CLOSING_LIMIT, CLOSING_LIMIT))
+                step = new - v
+                values[f] = new
+                values[partner] = float(np.clip(values.get(partner, 0.0) + (step if f != 16 else -step),
+                                                -CLOSING_LIMIT, CLOSING_LIMIT))
                 for g in (f, partner):
                     if g in LIP_CONTOUR_PAIRS:
                         values[LIP_CONTOUR_PAIRS[g]] = values[g]
