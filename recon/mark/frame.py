@@ -27,6 +27,7 @@ UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
 #: Axis names for the up and forward flags.
 AXES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1), "-z": (0, 0, -1)}
 _HEAD_SIZE = 0.3  # metres: a head with some neck, for choosing the unit
+_UNIT_SLACK = 4.0  # a head (with or without neck and hair) is within this factor of _HEAD_SIZE
 _NOSE_CAP = 0.015  # metres: depth of the cap in which the nose ends
 _SLICE = 0.105  # metres beyond the nose: the forehead and skull above, under the chin below
 _CLOSE_CALL = 0.03  # metres: up scores nearer than this leave it to the feature points
@@ -208,7 +209,8 @@ def estimate_frame(head: Head, unit: str | None = None, up: str | None = None, f
     head : Head
         As the file has it.
     unit : str, optional
-        A key of :data:`UNITS`; detected (m, cm or mm) from the head's size when None.
+        A key of :data:`UNITS`; detected (m, cm or mm) from the head's size when None, and when
+        none of them makes it head-sized (a model in its own units), scaled to a head's size.
     up, forward : str, optional
         File axes (``"+y"``, ``"-z"`` ...) of the head's up and the face's forward
         direction; detected when None.
@@ -234,15 +236,28 @@ def estimate_frame(head: Head, unit: str | None = None, up: str | None = None, f
     notes = []
     pts = _samples(head)
     extent = float((pts.max(axis=0) - pts.min(axis=0)).max())
+    if not extent > 0:
+        raise InputError("the mesh has no extent (all its vertices at one place)", where=where,
+                         fix="give a head mesh")
     if unit is None:
         unit = min(("m", "cm", "mm"), key=lambda u: abs(np.log(extent * UNITS[u] / _HEAD_SIZE)))
-        notes.append(f"unit: {unit} (detected: the mesh is {extent:.4g} units across, "
-                     f"{extent * UNITS[unit] * 100:.0f} cm in {unit})")
+        if abs(np.log(extent * UNITS[unit] / _HEAD_SIZE)) > np.log(_UNIT_SLACK):
+            # Neither metres, centimetres nor millimetres make it a head (a model in its own
+            # units, e.g. CANDIDE's): scaled to a head's size, the feature points then set
+            # its FAPU, which is all the animation needs.
+            s = _HEAD_SIZE / extent
+            notes.append(f"unit: none of m, cm, mm (the mesh is {extent:.4g} units across); scaled to a head "
+                         f"{_HEAD_SIZE * 100:.0f} cm across (give --unit if the file has one)")
+            unit = f"{s:.6g} m"
+        else:
+            notes.append(f"unit: {unit} (detected: the mesh is {extent:.4g} units across, "
+                         f"{extent * UNITS[unit] * 100:.0f} cm in {unit})")
+            s = UNITS[unit]
     elif unit not in UNITS:
         raise InputError(f"unknown unit {unit!r}", where=where, fix=f"use one of {', '.join(UNITS)}")
     else:
         notes.append(f"unit: {unit} (given)")
-    s = UNITS[unit]
+        s = UNITS[unit]
     pts = pts * s
     centre = pts.mean(axis=0)
     pts = pts - centre
@@ -298,8 +313,10 @@ def estimate_frame(head: Head, unit: str | None = None, up: str | None = None, f
                              f"is {widths[order[0]] * 100:.1f} cm wide, the next {widths[order[1]] * 100:.1f} cm)",
                              where=where, fix="give a head mesh (a face with a nose), or --up and --forward")
         f = nose
+        # (A low-poly nose may end in one vertex: a width of 0.)
+        narrower = f"{1 / ratio:.1f}x narrower" if ratio > 0 else "narrower"
         notes.append(f"forward: {_axis_name(f)} (detected: the surface ends in a nose "
-                     f"{widths[order[0]] * 100:.1f} cm wide that way, {1 / ratio:.1f}x narrower than any other end)")
+                     f"{widths[order[0]] * 100:.1f} cm wide that way, {narrower} than any other end)")
     if given_up is not None:
         u = given_up - (given_up @ f) * f
         u /= np.linalg.norm(u)

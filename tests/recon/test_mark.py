@@ -273,3 +273,31 @@ def test_marking_a_three_million_triangle_head_stays_under_2_gb(tmp_path):
     triangles, median_mm, peak_mb = (float(x) for x in run.stdout.split())
     assert triangles > 3_000_000 and median_mm < 2.0
     assert peak_mb < 2048, f"peak {peak_mb:.0f} MB"
+
+
+@pytest.mark.parametrize("scale", [1.0 / 0.12, 1000.0])  # CANDIDE's own units (about ±1), millimetres
+def test_a_candide_size_head_is_marked_in_any_unit(scale):
+    """A low-poly head of about 120 vertices, in its own units: no division by zero, the unit
+    scaled to a head's size when no metric unit fits, the points on the mesh."""
+    import fast_simplification
+
+    from mpeg4.generic_head import load_generic_head
+    from mpeg4.head import Head, Part
+    from recon.evaluate.synthetic import perfect_detector
+    from recon.mark import mark
+    from recon.mark.frame import estimate_frame
+
+    g = load_generic_head()
+    skin = g.parts["skin"]
+    v, f = fast_simplification.simplify(skin.vertices.astype(np.float32), skin.triangles.astype(np.int32),
+                                        1 - 120 / skin.n_vertices)
+    head = Head({"skin": Part("skin", v.astype(np.float64) * scale, f)}, {}, {})
+    frame = estimate_frame(head)
+    assert frame.scale * scale == pytest.approx(1.0, rel=0.5)  # a head-sized head in metres
+    truth = {i: g.fp_position(i) * scale for i, b in g.feature_points.items() if b.part == "skin"}
+    result = mark(head, detect=perfect_detector(truth), passes=1)
+    span = np.linalg.norm(truth["3.7"] - truth["3.12"])  # outer eye corners (the mesh has no eyeballs)
+    errors = [np.linalg.norm(result.frame.inverse(result.head.fp_position(i))[0] - truth[i]) / span
+              for i in truth if i in result.head.feature_points]
+    # The coarse surface lies millimetres from the fine one the true points are on.
+    assert len(errors) >= 70 and np.median(errors) < 0.05 and np.percentile(errors, 90) < 0.2
