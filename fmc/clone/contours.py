@@ -57,13 +57,26 @@ _DETOUR = 1.6
 
 
 def edge_graph(vertices: np.ndarray, triangles: np.ndarray) -> sparse.csr_matrix:
-    """(N, N) symmetric sparse matrix of a mesh's edge lengths."""
+    """(N, N) symmetric sparse matrix of a mesh's edge lengths, with the copies of one
+    vertex joined.
+
+    A textured head stores each vertex of a texture seam once per side of the seam, at the
+    same place (:func:`mpeg4.seams.split_vertices`): the copies are joined by an edge of
+    (almost) no length, so that paths and distances run across seams. A reconstructed
+    head, the product's main target, has seams through its lips and lids; without the
+    join a contour that crosses one was silently left out of the cloning.
+    """
     v = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
     n = len(v)
     e = np.r_[t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]
+    if n:
+        _, first, inverse = np.unique(np.round(v, 9), axis=0, return_index=True, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        copies = np.flatnonzero(first[inverse] != np.arange(n))
+        e = np.r_[e, np.c_[copies, first[inverse[copies]]]]
     # The edges both ways, each once (the duplicates summed), then their lengths; a
-    # zero-length edge (welded vertices) would read as missing: a tiny length instead.
+    # zero-length edge (joined copies) would read as missing: a tiny length instead.
     both = sparse.csr_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
                              shape=(n, n)).tocoo()
     length = np.maximum(np.linalg.norm(v[both.row] - v[both.col], axis=1), 1e-12)

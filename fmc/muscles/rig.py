@@ -13,6 +13,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import ConvexHull
 
+from fmc.clone.contours import edge_graph
 from mpeg4.catalogue import FAPS
 from mpeg4.errors import InputError
 from mpeg4.fat import FAT, fap_unit
@@ -40,16 +41,7 @@ _JAW_PARTS = ("teeth_lower", "gums_lower", "tongue")
 def _edge_graph(part) -> sp.csr_matrix:
     """The mesh's edges weighted by length, with copies of one vertex (a texture seam stores
     a vertex once per side) joined, so that distances run across seams."""
-    t = part.triangles
-    e = np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]])
-    _, first, inverse = np.unique(np.round(part.vertices, 9), axis=0, return_index=True, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    copies = np.flatnonzero(first[inverse] != np.arange(part.n_vertices))
-    e = np.concatenate([e, np.c_[copies, first[inverse[copies]]]])
-    w = np.linalg.norm(part.vertices[e[:, 0]] - part.vertices[e[:, 1]], axis=1) + 1e-12
-    n = part.n_vertices
-    g = sp.coo_matrix((w, (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
-    return g.maximum(g.T).tocsr()
+    return edge_graph(part.vertices, part.triangles)
 
 
 def split_lips(head: Head, corner: float = 0.1) -> np.ndarray:

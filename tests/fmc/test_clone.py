@@ -540,3 +540,32 @@ def test_an_eye_meshed_with_the_skin_is_found_and_turned():
     # The blink moves the lid, not the eyeball under it.
     blink = cloned["eyeBlink_L"]["skin"].dense(target.skin.n_vertices)
     assert np.abs(blink[n:]).max() < 1e-9 and np.abs(blink[:n]).max() > 5e-3
+
+
+def test_contours_run_across_texture_seams():
+    """A textured head stores its seam vertices twice; a seam down the middle of the face
+    cuts every lip contour. The contours are found across it, as long as on the whole mesh
+    (they were silently left out of the cloning)."""
+    from fmc.clone.contours import CONTOURS, contour_path
+    from mpeg4.seams import split_vertices
+
+    head = load_generic_head()
+    skin = head.skin
+    tri = skin.triangles.copy()
+    right = skin.vertices[tri].mean(axis=1)[:, 0] < 0
+    seam = np.intersect1d(np.unique(tri[right]), np.unique(tri[~right]))
+    copy_of = np.arange(skin.n_vertices)
+    copy_of[seam] = skin.n_vertices + np.arange(len(seam))
+    tri[right] = copy_of[tri[right]]
+    split = split_vertices(head, "skin", np.r_[np.arange(skin.n_vertices), seam], tri)
+    crossing = 0
+    for chain in CONTOURS:
+        whole, cut = contour_path(head, chain), contour_path(split, chain)
+        if whole is None:
+            continue
+        assert cut is not None, chain
+        length = [sum(np.linalg.norm(np.diff(h.skin.vertices[p], axis=0), axis=1).sum() for p in paths)
+                  for h, paths in ((head, whole), (split, cut))]
+        assert length[1] == pytest.approx(length[0], rel=1e-6), chain
+        crossing += any(np.any(p >= skin.n_vertices) for p in cut)
+    assert crossing >= 2  # the seam crosses the lip contours
