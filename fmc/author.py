@@ -33,10 +33,10 @@ from mpeg4.errors import InputError
 from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
 from mpeg4.head import Head, SparseDisplacement
 
-from .lip_contours import split_lip_pairs
+from .lip_contours import share_lips
 
 __all__ = ["REGIONS", "ADJACENT", "region_of", "unrelated", "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit",
-           "BROW_POINTS", "BROW_RAISE_SHAPES", "brow_partition",
+           "BROW_POINTS", "BROW_RAISE_SHAPES", "brow_partition", "smooth_partition",
            "author_from_shapes",
            "HIGH_LEVEL_SHAPES", "author_high_level"]
 
@@ -345,8 +345,8 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
             err_all, leak_all = max(err_all, fit_err), max(leak_all, leak)
         fat.add(_mesh_table(head, n, meshes_by_sign, value, unit))
         report.append(FapFit(n, route, err_all, leak_all, weights))
-    # Each of the sculpted shapes moves the whole lip: inner and outer lip FAPs share it.
-    return split_lip_pairs(head, fat), report
+    # Each of the sculpted shapes moves the whole lip: the lip FAPs share it (fmc.lip_contours).
+    return share_lips(head, fat), report
 
 
 def brow_partition(head: Head, x: np.ndarray) -> np.ndarray:
@@ -369,16 +369,34 @@ def brow_partition(head: Head, x: np.ndarray) -> np.ndarray:
         raise InputError("the brow points are not ordered across the face (4.6, 4.4, 4.2, 4.1, 4.3, 4.5 from "
                          f"right to left); their x are {', '.join(f'{v * 1e3:.1f}' for v in nodes)} mm",
                          fix="check the brow points (fmc mark)")
+    return smooth_partition(nodes, x)
+
+
+def smooth_partition(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(N, K) smooth partition of unity over increasing ``nodes``: column j is 1 at node j,
+    0 at its neighbours, the quintic smoothstep between, and the outer columns 1 beyond the
+    outer nodes.
+
+    ``nodes`` (K,) places each node at one x; (K, 2) gives each an interval [lo, hi] on
+    which its column is 1 (a point bound to an edge or a triangle: all its vertices take
+    its whole piece), the intervals in order and apart.
+    """
+    nodes = np.asarray(nodes, dtype=np.float64)
+    lo, hi = (nodes, nodes) if nodes.ndim == 1 else (nodes[:, 0], nodes[:, 1])
     x = np.asarray(x, dtype=np.float64)
-    out = np.zeros((len(x), len(nodes)))
-    for j in range(len(nodes) - 1):
-        t = np.clip((x - nodes[j]) / (nodes[j + 1] - nodes[j]), 0.0, 1.0)
+    k = len(lo)
+    out = np.zeros((len(x), k))
+    for j in range(k):
+        out[(x >= lo[j]) & (x <= hi[j]), j] = 1.0
+    for j in range(k - 1):
+        a, b = hi[j], lo[j + 1]
+        inside = (x > a) & (x < b)
+        t = (x[inside] - a) / (b - a)
         step = t ** 3 * (10 - 15 * t + 6 * t ** 2)
-        inside = (x >= nodes[j]) & (x <= nodes[j + 1])
-        out[inside, j] = 1 - step[inside]
-        out[inside, j + 1] = step[inside]
-    out[x < nodes[0], 0] = 1.0
-    out[x > nodes[-1], -1] = 1.0
+        out[inside, j] = 1 - step
+        out[inside, j + 1] = step
+    out[x < lo[0], 0] = 1.0
+    out[x > hi[-1], -1] = 1.0
     return out
 
 

@@ -19,7 +19,7 @@ from skimage.measure import points_in_poly
 from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable
 from mpeg4.head import Head
 
-__all__ = ["INNER_LOOP", "OUTER_LOOP", "innerness", "split_lip_pairs"]
+__all__ = ["INNER_LOOP", "OUTER_LOOP", "LIP_NODES", "innerness", "split_lip_pairs", "partition_lips", "share_lips"]
 
 #: The inner lip contour around the mouth (right corner, upper lip, left corner, lower lip).
 INNER_LOOP = ("2.5", "2.7", "2.2", "2.6", "2.4", "2.8", "2.3", "2.9")
@@ -92,3 +92,65 @@ def split_lip_pairs(head: Head, fat: FAT, part: str = "skin") -> FAT:
     return out
 
 
+
+
+#: Per lip contour, its points across the mouth, right corner to left corner, on the upper
+#: and on the lower lip (the corners shared), and the FAPs that move them: per place, the
+#: upper lip's and the lower lip's vertical FAP, or at a corner its vertical and horizontal.
+LIP_NODES = {
+    "inner": (("2.5", "2.7", "2.2", "2.6", "2.4"), ("2.5", "2.9", "2.3", "2.8", "2.4"),
+              ((13, 7), (9, 11), (4, 5), (8, 10), (12, 6))),
+    "outer": (("8.4", "8.6", "8.1", "8.5", "8.3"), ("8.4", "8.8", "8.2", "8.7", "8.3"),
+              ((60, 54), (56, 58), (51, 52), (55, 57), (59, 53))),
+}
+
+
+def partition_lips(head: Head, fat: FAT, part: str = "skin") -> FAT:
+    """``fat`` with each lip FAP's table cut by a smooth partition across the mouth.
+
+    Along each contour the lip FAPs' points lie a centimetre apart, less than the reach of
+    the motion each table carries (a sculpted shape or a smooth bump moves the whole lip),
+    so each FAP moved its neighbours' points too: played together, as every stream plays
+    them, no point went where its own FAP says. Cut by a partition of unity across the
+    mouth (:func:`fmc.author.smooth_partition` over the x of the lip's points: corner,
+    midpoint, centre, midpoint, corner), a FAP keeps its table at its own point and fades to
+    nothing at the neighbouring points: each point then moves by its own FAP, and equal
+    values on every point still add up to one whole-lip motion. The upper lip's FAPs are
+    cut along the upper lip's points, the lower lip's along the lower's, a corner's along
+    the lip each vertex belongs to (:func:`fmc.author.lip_side`). Heads without all the
+    lip points are left as they are.
+    """
+    from .author import lip_side, smooth_partition
+
+    out = FAT(fat)
+    side = lip_side(head, part)
+    if part not in head.parts or side is None:
+        return out
+    x = head.parts[part].vertices[:, 0]
+    for upper, lower, faps in LIP_NODES.values():
+        if not all(i in head.feature_points and head.feature_points[i].part == part for i in upper + lower):
+            continue
+        # Each point's piece is whole over all the vertices it is bound to.
+        nodes = [np.array([[x[list(head.feature_points[i].vertices)].min(), x[list(head.feature_points[i].vertices)].max()]
+                           for i in ids]) for ids in (upper, lower)]
+        if any(np.any(n[1:, 0] <= n[:-1, 1]) for n in nodes):
+            continue
+        cut_up, cut_low = (smooth_partition(n, x) for n in nodes)
+        for j, group in enumerate(faps):
+            corner = j in (0, len(faps) - 1)
+            for k, n in enumerate(group):
+                if (n, 0) not in out:
+                    continue
+                if corner:
+                    cut = np.where(side < 0, cut_low[:, j], cut_up[:, j])
+                else:
+                    cut = (cut_up if k == 0 else cut_low)[:, j]
+                out.add(_scaled(out[(n, 0)], part, cut))
+    return out
+
+
+def share_lips(head: Head, fat: FAT, part: str = "skin") -> FAT:
+    """The lip FAPs' tables cut to share the lips: across the lip between the contours
+    (:func:`split_lip_pairs`) and across the mouth between the places
+    (:func:`partition_lips`)."""
+    return partition_lips(head, split_lip_pairs(head, fat, part), part)

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.optimize import brentq, nnls
 
 from fmc.author import FapFit, _falloff, _special, unrelated
-from fmc.lip_contours import split_lip_pairs
+from fmc.lip_contours import share_lips
 from mpeg4.catalogue import FAPS, FP_IDS
 from mpeg4.errors import InputError
 from mpeg4.fat import FAT, HIGH_LEVEL_UNIT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
@@ -198,8 +198,8 @@ def author_from_muscles(head: Head, value: float = 512.0, tol: float = 0.10, lea
         if "falloff" in route:
             rig.fallback.add(_falloff_only(table, rig, n, signs, head, value, unit, samples))
         report.append(FapFit(n, route, err_all, leak_all, weights))
-    # A muscle moves the whole lip: inner and outer lip FAPs share it.
-    return split_lip_pairs(head, fat), report
+    # A muscle moves the whole lip: the lip FAPs share it (fmc.lip_contours).
+    return share_lips(head, fat), report
 
 
 def _falloff_only(table, rig, n, signs, head, value, unit, samples):

@@ -8,7 +8,8 @@ from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.fat import fap_unit
 from mpeg4.generic_head import load_generic_head
 from fmc.author import unrelated
-from fmc.lip_contours import innerness
+from fmc.author import lip_side, smooth_partition
+from fmc.lip_contours import LIP_NODES, innerness
 from fmc.muscles import (GROUPS, HIGH_LEVEL_FAPS, Muscle, MuscleRig, author_from_muscles,
                          author_high_level_from_muscles, eyeball_centre, load_placement, place_muscles, split_lips)
 
@@ -225,9 +226,20 @@ def test_tables_reproduce_the_model_at_the_authoring_value(rigged):
         table = apply_fat(head.fat, neutral, values, head.fapu)
         model = rig.deform_faps(values)
         assert max(np.abs(table[k] - model[k]).max() for k in table) < 1e-6, values
-    # A lip FAP's table keeps its contour's share of the model's whole-lip motion.
+    # A lip FAP's table keeps its share of the model's whole-lip motion: its contour's
+    # (innerness) and its place's across the mouth (the partition, the corners here).
     w = innerness(head)
-    for n, share in ((12, w), (59, 1.0 - w)):
+    side = lip_side(head, "skin")
+
+    def corner_l(contour):
+        upper, lower, _ = LIP_NODES[contour]
+        x = head.skin.vertices[:, 0]
+        cuts = [smooth_partition(np.array([[x[list(head.feature_points[i].vertices)].min(),
+                                             x[list(head.feature_points[i].vertices)].max()] for i in ids]), x)[:, -1]
+                for ids in (upper, lower)]
+        return np.where(side < 0, cuts[1], cuts[0])
+
+    for n, share in ((12, w * corner_l("inner")), (59, (1.0 - w) * corner_l("outer"))):
         table = apply_fat(head.fat, neutral, {n: -512.0}, head.fapu)
         model = rig.deform_faps({n: -512.0})
         expected = neutral["skin"] + share[:, None] * (model["skin"] - neutral["skin"])
