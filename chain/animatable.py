@@ -20,14 +20,14 @@ __all__ = ["GENERIC_SOURCE", "clone_step", "load_source"]
 @functools.lru_cache(maxsize=2)
 def load_source(source: str = GENERIC_SOURCE) -> Head:
     """The head whose motion is cloned: ``"generic"`` for the generic head with its
-    Facial Animation Tables, or a head file (:func:`fmc.clone.source_head`).
+    Facial Animation Tables, or a head file (:func:`fmc.heads.animated_head`).
 
     Kept per process (at most two sources), so a long batch reads each source once and a
     worker's memory does not grow with the number of heads.
     """
-    from fmc.clone import source_head
+    from fmc.heads import animated_head
 
-    return source_head(source)
+    return animated_head(source)
 
 
 def clone_step(head: Head, source: str | os.PathLike = GENERIC_SOURCE) -> tuple[Head, list[str]]:

@@ -52,7 +52,7 @@ def target_head(path, detect=None, progress=None) -> tuple[Head, list[str]]:
 def clone_onto(source, target, detect=None, progress=None, **options) -> tuple[Head, list[str]]:
     """:func:`fmc.clone.clone` of a head file onto another, marking the target if needed.
 
-    ``source`` is read by :func:`fmc.clone.source_head` (``None`` or ``"generic"``: the
+    ``source`` is read by :func:`fmc.heads.animated_head` (``None`` or ``"generic"``: the
     generic head with its tables).
 
     ``options`` go to :func:`fmc.clone.clone` (``antialias``, ``triangulation``, ``alignment``).
@@ -63,8 +63,9 @@ def clone_onto(source, target, detect=None, progress=None, **options) -> tuple[H
         The target with the source's motion.
     warnings : list of str
     """
-    from fmc.clone import clone, source_head
+    from fmc.clone import clone
+    from fmc.heads import animated_head
 
     tgt, warnings = target_head(target, detect=detect, progress=progress)
-    head, more = clone(source_head(source), tgt, **options)
+    head, more = clone(animated_head(source), tgt, **options)
     return head, warnings + more

@@ -208,11 +208,13 @@ def write_animation(head: Head, stream, out_dir, preview: bool = True, audio=Non
 def play_stream(head_path, stream_path, out_dir, preview: bool = True, lenient: bool = False,
                 progress: Callable[[str], None] | None = None, limits: bool = True) -> dict[str, Path]:
     """``fmc play``: the animated GLB (and a preview GIF) of a FAP stream on a head."""
-    from mpeg4.io import load_head, read_fap
+    from mpeg4.io import read_fap
+
+    from .heads import animated_head
 
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
-    head = load_head(head_path)
+    head = animated_head(head_path)
     stream = read_fap(stream_path, lenient=lenient)
     say(f"{stream.n_frames} frames at {stream.fps:g} fps")
     paths = write_animation(head, stream, out_dir, preview=preview, progress=say, limits=limits)
@@ -232,14 +234,16 @@ def say(head_path, text: str, out_dir, voice: str = "en", preview: bool = True, 
     face holds that expression at ``intensity`` while it speaks, and bilabials still close
     the lips (:func:`fmc.coarticulation.close_bilabials`).
     """
-    from mpeg4.io import load_head, write_fap
+    from mpeg4.io import write_fap
+
+    from .heads import animated_head
 
     from .coarticulation import speech_stream
     from .speech import synthesize, write_wav
 
     say_ = progress or (lambda msg: None)
     t0 = time.perf_counter()
-    head = load_head(head_path)
+    head = animated_head(head_path)
     if head.fat is None or not len(head.fat):
         raise InputError("the head has no Facial Animation Tables to speak with",
                          where=os.fspath(head_path), fix="author them first: fmc author HEAD -o HEAD_WITH_FAT.glb")
@@ -283,14 +287,16 @@ def animate_timeline(head_path, timeline_path, out_dir, preview: bool = True,
                      progress: Callable[[str], None] | None = None) -> dict[str, Path]:
     """``fmc animate``: blend a timeline of actions (:mod:`fmc.actions`) and play it on a
     head — timeline.fap, animation.glb, preview.gif."""
-    from mpeg4.io import load_head, write_fap
+    from mpeg4.io import write_fap
+
+    from .heads import animated_head
 
     from .actions import read_timeline
 
     say_ = progress or (lambda msg: None)
     t0 = time.perf_counter()
     timeline = read_timeline(timeline_path)
-    head = load_head(head_path)
+    head = animated_head(head_path)
     stream = timeline.stream()
     say_(f"{len(timeline.actions)} actions, {stream.n_frames} frames at {stream.fps:g} fps")
     out = Path(out_dir)

@@ -66,8 +66,13 @@ def author(head: Path = typer.Argument(..., help="Head with feature points (.glb
                f"worst leak into unrelated points {max(r.leak for r in report):.1%}")
 
 
+#: The head argument of play, say and animate (read by fmc.heads.animated_head).
+HEAD_HELP = ("Head with animation tables (.glb, with its tables in it or in <stem>_fat.npz beside it; see fmc "
+             "author), or 'generic' for the generic head.")
+
+
 @app.command()
-def play(head: Path = typer.Argument(..., help="Head with animation tables (.glb; see fmc author)."),
+def play(head: str = typer.Argument(..., help=HEAD_HELP),
          stream: Path = typer.Argument(..., help="MPEG-4 .fap stream."),
          out: Path = typer.Option(Path("play_out"), "-o", "--out", help="Output folder."),
          preview: bool = typer.Option(True, help="Also render preview.gif."),
@@ -85,7 +90,7 @@ def play(head: Path = typer.Argument(..., help="Head with animation tables (.glb
 
 
 @app.command()
-def say(head: Path = typer.Argument(..., help="Head with animation tables (.glb; see fmc author)."),
+def say(head: str = typer.Argument(..., help=HEAD_HELP),
         text: str = typer.Argument(..., help="What to say."),
         out: Path = typer.Option(Path("say_out"), "-o", "--out", help="Output folder."),
         voice: str = typer.Option("en", help="espeak-ng voice (en, en-us, de, fr, ...)."),
@@ -105,7 +110,7 @@ def say(head: Path = typer.Argument(..., help="Head with animation tables (.glb;
 
 
 @app.command()
-def animate(head: Path = typer.Argument(..., help="Head with animation tables (.glb; see fmc author)."),
+def animate(head: str = typer.Argument(..., help=HEAD_HELP),
             timeline: Path = typer.Argument(..., help="Timeline of actions (JSON; see fmc.actions)."),
             out: Path = typer.Option(Path("animate_out"), "-o", "--out", help="Output folder."),
             preview: bool = typer.Option(True, help="Also render preview.gif.")) -> None:
@@ -139,10 +144,11 @@ def clone_cmd(source: str = SOURCE_OPTION,
               triangulation: str = TRIANGULATION_OPTION) -> None:
     """Clone morph targets and Facial Animation Tables from one head onto another (Pandzic's
     Facial Motion Cloning; see the README for the measured accuracy)."""
-    from fmc.clone import clone, source_head
+    from fmc.clone import clone
+    from fmc.heads import animated_head
     from mpeg4.io import load_head, save_head
 
-    head, warnings = clone(source_head(source), load_head(target), antialias=antialias, triangulation=triangulation,
+    head, warnings = clone(animated_head(source), load_head(target), antialias=antialias, triangulation=triangulation,
                            alignment=alignment)
     for w in warnings:
         typer.echo(f"fmc: warning: {w}", err=True)

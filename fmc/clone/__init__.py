@@ -60,11 +60,10 @@ from .contours import CONTOURS, contour_pairs, contour_path, edge_graph
 from .interpolate import TriangleIndex, disc_samples, gradient_operator, interpolation_matrix
 from .parts import PART_ROLES, PartRef, find_parts, rigid_motion, sphere_centre
 from .regions import LIP_FPS, lip_classes, lip_sides_on_mesh, normalisation, region_scales
-from .source import source_head
 from .space import MOUTH_SPAN, alignment_space, cylinder_axis
 
 __all__ = [
-    "clone", "clone_targets", "source_head", "correspond", "Correspondence", "check_head", "REQUIRED_FPS",
+    "clone", "clone_targets", "correspond", "Correspondence", "check_head", "REQUIRED_FPS",
     "align_heads", "lip_sides", "skin_weights", "pin_feature_points",
     "normalisation", "region_scales", "lip_classes", "lip_sides_on_mesh", "LIP_FPS",
     "alignment_space", "cylinder_axis", "MOUTH_SPAN",

@@ -64,13 +64,13 @@ def test_the_generic_head_is_the_default_source_with_its_tables(tmp_path):
     source finds the tables stored beside it."""
     from typer.testing import CliRunner
 
-    from fmc.clone import source_head
+    from fmc.heads import animated_head
     from fmc.cli import app
     from mpeg4.generic_head import load_generic_head
     from mpeg4.io import load_head, save_head
 
     generic = load_generic_head(with_fat=True)
-    assert len(source_head(None).fat) == len(generic.fat) == len(source_head(generic_head_path()).fat) >= 88
+    assert len(animated_head(None).fat) == len(generic.fat) == len(animated_head(generic_head_path()).fat) >= 88
     target = generic.with_vertices({k: p.vertices * 0.95 for k, p in generic.parts.items()})
     target.morph_targets, target.fat = {}, None
     save_head(target, tmp_path / "tgt.glb")

@@ -130,3 +130,22 @@ def test_weights_stay_within_0_and_1_so_every_viewer_plays_the_same(head, tmp_pa
         want = player.part_vertices(player.vertices(held.frame_values(i)))
         seen = _gltf_view(back, got, i)
         assert max(np.abs(seen[n] - want[n]).max() for n in want) < 1e-5  # float32 storage: 0.01 mm
+
+
+def test_fmc_play_takes_the_generic_head_by_name_or_by_its_glb(tmp_path):
+    """The generic head's GLB keeps its tables beside it (generic_head_fat.npz): play finds
+    them, and 'generic' names it; a limit that acts is said."""
+    from typer.testing import CliRunner
+
+    from fmc.cli import app
+    from mpeg4.generic_head import generic_head_path
+
+    values = np.full((6, 68), np.nan)
+    values[:, 18], values[:, 20] = 1080.0, 600.0  # lids asked to pass each other
+    write_fap(FapStream.from_values(values, fps=25), tmp_path / "s.fap")
+    for head in ("generic", str(generic_head_path())):
+        out = CliRunner().invoke(app, ["play", head, str(tmp_path / "s.fap"), "-o", str(tmp_path / "out"),
+                                       "--no-preview"])
+        assert out.exit_code == 0, out.output
+        assert "stopped where they meet in 6 of 6 frames" in out.output
+        assert (tmp_path / "out" / "animation.glb").exists()

@@ -1,4 +1,5 @@
-"""The head whose motion is cloned: the generic head by default, or a head file."""
+"""A head with its motion, by name: the generic head by default, or a head file with its
+animation tables in it or stored beside it (``fmc play``, ``fmc say``, ``fmc clone``)."""
 
 from __future__ import annotations
 
@@ -6,14 +7,14 @@ import os
 
 from mpeg4.head import Head
 
-__all__ = ["GENERIC", "source_head"]
+__all__ = ["GENERIC", "animated_head"]
 
 #: The name that stands for the generic head with its Facial Animation Tables.
 GENERIC = "generic"
 
 
-def source_head(source: str | os.PathLike | None = None) -> Head:
-    """The head whose motion is cloned.
+def animated_head(source: str | os.PathLike | None = None) -> Head:
+    """A head with its motion (morph targets, Facial Animation Tables).
 
     ``None`` or ``"generic"``: the generic head with its Facial Animation Tables. A head
     file: as :func:`mpeg4.io.load_head` reads it, with the tables stored beside it as
