@@ -33,7 +33,7 @@ from mpeg4.errors import InputError
 from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
 from mpeg4.head import Head, SparseDisplacement
 
-from .lip_contours import share_lips
+from .lip_contours import MOUTH_LINE_FPS, lip_side, mouth_line, share_lips, smooth_partition
 
 __all__ = ["REGIONS", "ADJACENT", "region_of", "unrelated", "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit",
            "BROW_POINTS", "BROW_RAISE_SHAPES", "brow_partition", "smooth_partition",
@@ -77,39 +77,6 @@ BROW_RAISE_SHAPES = ("browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOut
 # Lip points: which lip each lies on (the other lip must not follow it).
 _UPPER_LIP = {"2.2", "2.6", "2.7", "8.1", "8.5", "8.6", "8.9", "8.10"}
 _LOWER_LIP = {"2.3", "2.8", "2.9", "8.2", "8.7", "8.8"}
-
-
-#: Inner-lip feature points that define the mouth line (see :func:`mouth_line`).
-MOUTH_LINE_FPS = ("2.5", "2.7", "2.9", "2.2", "2.3", "2.6", "2.8", "2.4")
-
-
-def mouth_line(points) -> np.ndarray:
-    """(5, 2) polyline of the mouth, sorted along its first coordinate.
-
-    It runs through the lip corners 2.5 and 2.4 and midway between the inner contours of
-    the two lips (2.7/2.9, 2.2/2.3, 2.6/2.8), so the inner-lip points of each lip fall
-    clearly on their own side.
-
-    Parameters
-    ----------
-    points : mapping of str to (2,) array
-        The :data:`MOUTH_LINE_FPS` in any 2D space (front-view x, y; the cloning space).
-    """
-    p = {i: np.asarray(points[i], dtype=np.float64) for i in MOUTH_LINE_FPS}
-    line = np.array([p["2.5"], 0.5 * (p["2.7"] + p["2.9"]), 0.5 * (p["2.2"] + p["2.3"]), 0.5 * (p["2.6"] + p["2.8"]),
-                     p["2.4"]])
-    return line[np.argsort(line[:, 0])]
-
-
-def lip_side(head: Head, part: str) -> np.ndarray | None:
-    """(N,) +1 for vertices of ``part`` above the mouth line, −1 below, 0 beyond the corners."""
-    if part != "skin" or not all(i in head.feature_points for i in MOUTH_LINE_FPS):
-        return None
-    line = mouth_line({i: head.fp_position(i)[:2] for i in MOUTH_LINE_FPS})
-    v = head.parts[part].vertices
-    line_y = np.interp(v[:, 0], line[:, 0], line[:, 1])
-    inside = (v[:, 0] > line[0, 0]) & (v[:, 0] < line[-1, 0])
-    return np.where(inside, np.sign(v[:, 1] - line_y), 0.0)
 
 
 @dataclass
@@ -370,34 +337,6 @@ def brow_partition(head: Head, x: np.ndarray) -> np.ndarray:
                          f"right to left); their x are {', '.join(f'{v * 1e3:.1f}' for v in nodes)} mm",
                          fix="check the brow points (fmc mark)")
     return smooth_partition(nodes, x)
-
-
-def smooth_partition(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """(N, K) smooth partition of unity over increasing ``nodes``: column j is 1 at node j,
-    0 at its neighbours, the quintic smoothstep between, and the outer columns 1 beyond the
-    outer nodes.
-
-    ``nodes`` (K,) places each node at one x; (K, 2) gives each an interval [lo, hi] on
-    which its column is 1 (a point bound to an edge or a triangle: all its vertices take
-    its whole piece), the intervals in order and apart.
-    """
-    nodes = np.asarray(nodes, dtype=np.float64)
-    lo, hi = (nodes, nodes) if nodes.ndim == 1 else (nodes[:, 0], nodes[:, 1])
-    x = np.asarray(x, dtype=np.float64)
-    k = len(lo)
-    out = np.zeros((len(x), k))
-    for j in range(k):
-        out[(x >= lo[j]) & (x <= hi[j]), j] = 1.0
-    for j in range(k - 1):
-        a, b = hi[j], lo[j + 1]
-        inside = (x > a) & (x < b)
-        t = (x[inside] - a) / (b - a)
-        step = t ** 3 * (10 - 15 * t + 6 * t ** 2)
-        out[inside, j] = 1 - step
-        out[inside, j + 1] = step
-    out[x < lo[0], 0] = 1.0
-    out[x > hi[-1], -1] = 1.0
-    return out
 
 
 def _brow_piece(head, n, goal, ids, k, bad):

@@ -19,12 +19,74 @@ from skimage.measure import points_in_poly
 from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable
 from mpeg4.head import Head
 
-__all__ = ["INNER_LOOP", "OUTER_LOOP", "LIP_NODES", "innerness", "split_lip_pairs", "partition_lips", "share_lips"]
+__all__ = ["MOUTH_LINE_FPS", "mouth_line", "lip_side", "smooth_partition", "INNER_LOOP", "OUTER_LOOP", "LIP_NODES",
+           "innerness", "split_lip_pairs", "partition_lips", "share_lips"]
 
 #: The inner lip contour around the mouth (right corner, upper lip, left corner, lower lip).
 INNER_LOOP = ("2.5", "2.7", "2.2", "2.6", "2.4", "2.8", "2.3", "2.9")
 #: The outer lip contour in the same order.
 OUTER_LOOP = ("8.4", "8.6", "8.1", "8.5", "8.3", "8.7", "8.2", "8.8")
+
+
+#: Inner-lip feature points that define the mouth line (see :func:`mouth_line`).
+MOUTH_LINE_FPS = ("2.5", "2.7", "2.9", "2.2", "2.3", "2.6", "2.8", "2.4")
+
+
+def mouth_line(points) -> np.ndarray:
+    """(5, 2) polyline of the mouth, sorted along its first coordinate.
+
+    It runs through the lip corners 2.5 and 2.4 and midway between the inner contours of
+    the two lips (2.7/2.9, 2.2/2.3, 2.6/2.8), so the inner-lip points of each lip fall
+    clearly on their own side.
+
+    Parameters
+    ----------
+    points : mapping of str to (2,) array
+        The :data:`MOUTH_LINE_FPS` in any 2D space (front-view x, y; the cloning space).
+    """
+    p = {i: np.asarray(points[i], dtype=np.float64) for i in MOUTH_LINE_FPS}
+    line = np.array([p["2.5"], 0.5 * (p["2.7"] + p["2.9"]), 0.5 * (p["2.2"] + p["2.3"]), 0.5 * (p["2.6"] + p["2.8"]),
+                     p["2.4"]])
+    return line[np.argsort(line[:, 0])]
+
+
+def lip_side(head: Head, part: str) -> np.ndarray | None:
+    """(N,) +1 for vertices of ``part`` above the mouth line, −1 below, 0 beyond the corners."""
+    if part != "skin" or not all(i in head.feature_points for i in MOUTH_LINE_FPS):
+        return None
+    line = mouth_line({i: head.fp_position(i)[:2] for i in MOUTH_LINE_FPS})
+    v = head.parts[part].vertices
+    line_y = np.interp(v[:, 0], line[:, 0], line[:, 1])
+    inside = (v[:, 0] > line[0, 0]) & (v[:, 0] < line[-1, 0])
+    return np.where(inside, np.sign(v[:, 1] - line_y), 0.0)
+
+
+def smooth_partition(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """(N, K) smooth partition of unity over increasing ``nodes``: column j is 1 at node j,
+    0 at its neighbours, the quintic smoothstep between, and the outer columns 1 beyond the
+    outer nodes.
+
+    ``nodes`` (K,) places each node at one x; (K, 2) gives each an interval [lo, hi] on
+    which its column is 1 (a point bound to an edge or a triangle: all its vertices take
+    its whole piece), the intervals in order and apart.
+    """
+    nodes = np.asarray(nodes, dtype=np.float64)
+    lo, hi = (nodes, nodes) if nodes.ndim == 1 else (nodes[:, 0], nodes[:, 1])
+    x = np.asarray(x, dtype=np.float64)
+    k = len(lo)
+    out = np.zeros((len(x), k))
+    for j in range(k):
+        out[(x >= lo[j]) & (x <= hi[j]), j] = 1.0
+    for j in range(k - 1):
+        a, b = hi[j], lo[j + 1]
+        inside = (x > a) & (x < b)
+        t = (x[inside] - a) / (b - a)
+        step = t ** 3 * (10 - 15 * t + 6 * t ** 2)
+        out[inside, j] = 1 - step
+        out[inside, j + 1] = step
+    out[x < lo[0], 0] = 1.0
+    out[x > hi[-1], -1] = 1.0
+    return out
 
 
 def _distance_to_loop(points: np.ndarray, loop: np.ndarray) -> np.ndarray:
@@ -112,16 +174,14 @@ def partition_lips(head: Head, fat: FAT, part: str = "skin") -> FAT:
     the motion each table carries (a sculpted shape or a smooth bump moves the whole lip),
     so each FAP moved its neighbours' points too: played together, as every stream plays
     them, no point went where its own FAP says. Cut by a partition of unity across the
-    mouth (:func:`fmc.author.smooth_partition` over the x of the lip's points: corner,
+    mouth (:func:`smooth_partition` over the x of the lip's points: corner,
     midpoint, centre, midpoint, corner), a FAP keeps its table at its own point and fades to
     nothing at the neighbouring points: each point then moves by its own FAP, and equal
     values on every point still add up to one whole-lip motion. The upper lip's FAPs are
     cut along the upper lip's points, the lower lip's along the lower's, a corner's along
-    the lip each vertex belongs to (:func:`fmc.author.lip_side`). Heads without all the
+    the lip each vertex belongs to (:func:`lip_side`). Heads without all the
     lip points are left as they are.
     """
-    from .author import lip_side, smooth_partition
-
     out = FAT(fat)
     side = lip_side(head, part)
     if part not in head.parts or side is None:
