@@ -77,8 +77,8 @@ def write_greta_streams(folder: Path, out_dir: Path, fps: float = 25.0) -> list[
 
 
 def play_file(head, player, checks, stream) -> dict[str, float]:
-    from fmc.conformance import (HEAD_TURN_FAPS, JAW_FAPS, eyeball_centre_shift, fp_conformance, lid_overlap,
-                                 region_over_fp)
+    from fmc.author import JAW_FAPS
+    from fmc.conformance import HEAD_TURN_FAPS, eyeball_centre_shift, fp_conformance, lid_overlap, region_over_fp
 
     held = stream.held()
     shift = stretch = overlap = 0.0

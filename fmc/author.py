@@ -35,7 +35,8 @@ from mpeg4.head import Head, SparseDisplacement
 
 from .lip_contours import MOUTH_LINE_FPS, lip_side, mouth_line, share_lips, smooth_partition
 
-__all__ = ["REGIONS", "ADJACENT", "region_of", "unrelated", "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit",
+__all__ = ["JAW_PARTS", "JAW_FAPS", "moving_parts", "REGIONS", "ADJACENT", "region_of", "unrelated",
+           "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit",
            "BROW_POINTS", "BROW_RAISE_SHAPES", "brow_partition", "smooth_partition",
            "author_from_shapes",
            "HIGH_LEVEL_SHAPES", "author_high_level"]
@@ -105,7 +106,8 @@ class FapFit:
 
 #: The parts that move with the lower jaw (the jaw FAPs 3, 14 and 15 carry them along).
 JAW_PARTS = ("teeth_lower", "gums_lower", "tongue")
-_JAW_FAPS = (3, 14, 15)
+#: The jaw FAPs (open, thrust, shift), whose tables move those parts.
+JAW_FAPS = (3, 14, 15)
 
 
 def moving_parts(head: Head, n: int) -> frozenset[str]:
@@ -119,7 +121,7 @@ def moving_parts(head: Head, n: int) -> frozenset[str]:
     eyeball to fit a lip corner.
     """
     own = head.feature_points[FAPS[n].feature_points[0]].part
-    if n in _JAW_FAPS:
+    if n in JAW_FAPS:
         return frozenset({own, *(p for p in JAW_PARTS if p in head.parts)})
     return frozenset({own})
 

@@ -24,13 +24,11 @@ from mpeg4.catalogue import FAPS
 from mpeg4.fat import apply_fat, fap_unit
 from mpeg4.head import Head
 
-__all__ = ["HEAD_TURN_FAPS", "JAW_FAPS", "allowed_parts", "part_leaks", "eyeball_centre_shift", "fp_prediction",
+__all__ = ["HEAD_TURN_FAPS", "allowed_parts", "part_leaks", "eyeball_centre_shift", "fp_prediction",
            "fp_conformance", "lid_overlap", "region_over_fp", "SurfaceChecks"]
 
 #: The head rotations (about 7.1): everything turns with them.
 HEAD_TURN_FAPS = (48, 49, 50)
-#: The jaw FAPs: the chin swings on an arc, so the skin may outrun the point.
-JAW_FAPS = (3, 14, 15)
 
 
 def allowed_parts(head: Head, n: int) -> frozenset[str]:

@@ -28,11 +28,11 @@ from mpeg4.catalogue import FAPS
 from mpeg4.fat import fap_unit, signed_overlaps
 from mpeg4.head import Head
 
-__all__ = ["JAW_FAPS", "LIP_FAPS", "table_effect", "effect_of", "Decoupler"]
+from .author import JAW_FAPS
+
+__all__ = ["LIP_FAPS", "table_effect", "effect_of", "Decoupler"]
 
 
-#: The jaw FAPs, whose tables carry the lips.
-JAW_FAPS = (3, 14, 15)
 #: The lip FAPs whose points the jaw carries: inner and outer lip contours, lips' depth.
 LIP_FAPS = tuple(range(4, 14)) + (16, 17) + tuple(range(51, 61))
 

@@ -28,7 +28,8 @@ from mpeg4.catalogue import FAPS
 from mpeg4.fat import fap_unit
 from mpeg4.head import Head
 
-from .decouple import JAW_FAPS, effect_of, table_effect
+from .author import JAW_FAPS
+from .decouple import effect_of, table_effect
 
 __all__ = ["MEETING_PAIRS", "TURN_LIMITS_DEG", "Limits"]
 

@@ -13,6 +13,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import ConvexHull
 
+from fmc.author import JAW_PARTS
 from fmc.clone.contours import edge_graph
 from mpeg4.catalogue import FAPS
 from mpeg4.errors import InputError
@@ -35,7 +36,7 @@ _LOWER_SEEDS = ("2.3", "2.8", "2.9", "8.2", "8.7", "8.8", "2.1", "2.10", "2.11",
 # The eyelid points of each eye: margin, fold (upper lid; lower lid), the two corners.
 _LIDS = {"L": dict(part="eye_l", upper=("3.1", "3.13"), lower=("3.3", "3.9"), corners=("3.11", "3.7")),
          "R": dict(part="eye_r", upper=("3.2", "3.14"), lower=("3.4", "3.10"), corners=("3.8", "3.12"))}
-_JAW_PARTS = ("teeth_lower", "gums_lower", "tongue")
+_JAW_PARTS = JAW_PARTS  # the parts the jaw carries, as the shapes route has them
 
 
 def _edge_graph(part) -> sp.csr_matrix:
