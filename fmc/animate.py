@@ -26,8 +26,8 @@ from mpeg4.io.gltf import GlbAnimation
 
 from .frames import FrameDecoder
 
-__all__ = ["covering_head", "stream_animation", "render_preview_frames", "write_gif", "write_video", "write_animation", "play_stream",
-           "say", "animate_timeline"]
+__all__ = ["covering_head", "stream_animation", "render_preview_frames", "write_gif", "write_video", "write_animation",
+           "play_stream", "say", "animate_timeline"]
 
 
 def covering_head(head: Head, stream, limits: bool = True) -> Head:

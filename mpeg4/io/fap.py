@@ -39,7 +39,8 @@ from ..catalogue import EXPRESSIONS, FAPS, VISEMES
 from ..errors import InputError, require_file
 from .atomic import atomic_write
 
-__all__ = ["LIP_CONTOUR_PAIRS", "fill_lip_contours", "FapStream", "parse_fap", "read_fap", "format_fap", "write_fap", "describe_fap", "N_FAPS", "FPS_RANGE",
+__all__ = ["LIP_CONTOUR_PAIRS", "fill_lip_contours", "FapStream", "parse_fap", "read_fap", "format_fap", "write_fap",
+           "describe_fap", "N_FAPS", "FPS_RANGE",
            "MAX_FRAME_NUMBER", "MAX_FAP_VALUE", "check_values"]
 
 N_FAPS = 68
