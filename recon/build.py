@@ -1,4 +1,4 @@
-"""``recon build``: shape, texture and export of one head from two annotated photos.
+"""``recon build``: shape, texture and export of one head from two annotated photos, or one.
 
 :func:`build_head` is the computation: the generic head fitted to the feature points
 (:func:`recon.shape.fit.fit_head`), the photos' cameras recovered from them
@@ -7,7 +7,9 @@
 optionally the whole re-packed into a clean atlas (:func:`recon.texture.atlas.repack`). Shape and
 texture may come from different photo pairs (Lee et al. 2.3.1): the texture is laid out on
 the head fitted to its own pair, and carried to the shape's head, which has the same
-topology.
+topology. From a front photo alone the depth comes from the identity model
+(:func:`recon.shape.fit.fit_head_front`) and the sides of the texture from a skin model
+(:mod:`recon.texture.skin_model`); ``head.fdp.json`` records that the depth is estimated.
 
 :func:`run_build` is what the command runs: it reads the photos and annotations, builds,
 and writes the bundle — ``head.glb``, ``head.obj`` + ``head.mtl`` + ``texture.png``,
@@ -36,10 +38,11 @@ from mpeg4.io import read_fdp_json
 
 from .shape.calibrate import DEFAULT_IPD_MM
 from .texture.cameras import FittedCamera, fit_camera
-from .shape.fit import attach_photo_sizes, fit_head, require_views
+from .shape.fit import attach_photo_sizes, fit_head, fit_head_front, has_side, require_views
 from .publish import publish
 from .detection import DETECTED_NAME, correction_hint, detect_annotations
-from .photos import MAX_PHOTO_PIXELS, check_photo, photo_scale, photo_size, photos_focal_px, read_photo, view_at_size
+from .photos import (MAX_PHOTO_PIXELS, check_photo, photo_focal_px, photo_scale, photo_size, photos_focal_px,
+                     read_photo, view_at_size)
 
 __all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "run_build", "bundle_fdp", "build_time",
            "preview_with_photos", "DEFAULT_TEXTURE_SIZE"]
@@ -56,11 +59,12 @@ _MAX_RESIDUAL_SHARE = 0.12
 
 @dataclass
 class PhotoPair:
-    """A front and a side photo with their annotations.
+    """A front and a side photo with their annotations, or a front photo alone.
 
     Attributes
     ----------
     front, side : (H, W, 3) uint8
+        ``side`` is None for a front photo alone.
     fdp : mpeg4.io.fdp_json.FdpFile
         With ``front`` and ``side`` views; their sizes and points match the photos as read.
     paths : dict of str to str
@@ -75,7 +79,7 @@ class PhotoPair:
     """
 
     front: np.ndarray
-    side: np.ndarray
+    side: np.ndarray | None
     fdp: object
     paths: dict[str, str] = field(default_factory=dict)
     scale: float = 1.0
@@ -93,9 +97,10 @@ def load_pair(fdp_path: str | os.PathLike, front: str | os.PathLike | None = Non
     Parameters
     ----------
     fdp_path : path
-        The ``*.fdp.json`` with ``front`` and ``side`` views.
+        The ``*.fdp.json`` with ``front`` and ``side`` views, or a ``front`` view alone.
     front, side : path, optional
-        The photos; by default the ``image`` each view records, relative to the file.
+        The photos; by default the ``image`` each view records, relative to the file. A
+        side photo given needs points marked on it.
     max_pixels : int
         Photos larger than this are read smaller, both by one factor
         (:func:`recon.photos.photo_scale`), and the points with them.
@@ -104,8 +109,9 @@ def load_pair(fdp_path: str | os.PathLike, front: str | os.PathLike | None = Non
     fdp_path = os.fspath(fdp_path)
     fdp = read_fdp_json(fdp_path)
     given = {"front": front, "side": side}
+    names = ("front", "side") if side is not None or has_side(fdp) else ("front",)
     paths = {}
-    for name, view in require_views(fdp, fdp_path).items():
+    for name, view in require_views(fdp, fdp_path, names).items():
         p = given[name]
         if p is None:
             if not view.image:
@@ -127,7 +133,7 @@ def load_pair(fdp_path: str | os.PathLike, front: str | os.PathLike | None = Non
         for n, im in images.items():
             fdp.views[n] = view_at_size(fdp.views[n], im.shape[1], im.shape[0])
     paths["fdp"] = fdp_path
-    return PhotoPair(images["front"], images["side"], fdp, paths, scale, given)
+    return PhotoPair(images["front"], images.get("side"), fdp, paths, scale, given)
 
 
 @dataclass
@@ -193,6 +199,8 @@ def _check_cameras(cams: dict[str, FittedCamera], pair: PhotoPair, where: str) -
     as the front photo, points labelled on the wrong photo)."""
     for name, want, what in (("front", np.array([0.0, 0.0, 1.0]), "from the front"),
                              ("side", None, "from the side")):
+        if name not in cams:
+            continue
         cam = cams[name].camera
         toward = cam.rotation[2]  # from the head towards the camera
         if want is None:
@@ -254,7 +262,7 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     -------
     BuildResult
     """
-    from .texture import texture_skin, textured_head
+    from .texture import texture_skin
 
     say = progress or (lambda m: None)
     times = {}
@@ -263,6 +271,12 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     def focal(pair):
         return None if focal_px is None else focal_px * pair.scale
 
+    if shape.side is None:
+        if texture is not None:
+            raise InputError("a texture from another pair needs a shape from two photos", where="recon build",
+                             fix="build from the front photo alone without --texture-from")
+        return _build_front_only(shape, focal(shape), generic, ipd_mm, method, texture_size, atlas, blend,
+                                 keep_lighting, say, t0)
     head, cal = fit_head(shape.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal(shape), method=method,
                          where=shape.paths.get("fdp", "fdp.json"), height_tol_mm=height_tol_mm)
     if cal.dropped:
@@ -290,7 +304,14 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     _check_cameras(cams, tex_pair, where)
     skin = texture_skin(tex_head, tex_pair.front, tex_pair.side, cams["front"], cams["side"], size=texture_size,
                         blend=blend, delight=not keep_lighting, progress=say)
-    out = textured_head(head, skin, tex_pair.front)
+    return _finish(head, skin, tex_pair, cams, atlas, texture_size, keep_lighting, times, t0, t1, say)
+
+
+def _finish(head, skin, pair, cams, atlas, texture_size, keep_lighting, times, t0, t1, say) -> BuildResult:
+    """The textured head, re-packed if asked, with what the build did in its metadata."""
+    from .texture import textured_head
+
+    out = textured_head(head, skin, pair.front)
     times["texture"] = time.perf_counter() - t1
     if atlas:
         from .texture.atlas import repack
@@ -305,6 +326,30 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
         texture_regions=out.metadata.get("texture", {}).get("regions")))
     times["total"] = time.perf_counter() - t0
     return BuildResult(out, skin.cameras, skin, times)
+
+
+def _build_front_only(pair: PhotoPair, focal_px, generic, ipd_mm, method, texture_size, atlas, blend,
+                      keep_lighting, say, t0) -> BuildResult:
+    """:func:`build_head` for a front photo alone."""
+    from .texture import texture_skin
+
+    where = pair.paths.get("fdp", "fdp.json")
+    say("fitting the identity model to the front photo's points (no side photo: the depth is estimated)")
+    head, ff = fit_head_front(pair.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
+                              where=where)
+    if ff.focal_from == "estimated":
+        say(f"focal length estimated from the face: {ff.focal_px:.0f} px")
+    times = {"shape": time.perf_counter() - t0}
+    t1 = time.perf_counter()
+    view = pair.fdp.views["front"]
+    pts = head.fp_positions()
+    pixels = {i: p for i, p in view.points.items() if ff.source.get(i) == "front"}
+    cams = {"front": fit_camera(pts, pixels, view.width, view.height, focal_px=ff.focal_px,
+                                where=f"{where}, views.front")}
+    _check_cameras(cams, pair, where)
+    skin = texture_skin(head, pair.front, None, cams["front"], None, size=texture_size, blend=blend,
+                        delight=not keep_lighting, progress=say)
+    return _finish(head, skin, pair, cams, atlas, texture_size, keep_lighting, times, t0, t1, say)
 
 
 def _sha256(path: str) -> str:
@@ -361,7 +406,7 @@ def bundle_fdp(head: Head, shape: PhotoPair, texture: PhotoPair | None, options:
 
 
 def preview_with_photos(head: Head, pair: PhotoPair, size: int = 720) -> np.ndarray:
-    """(H, W, 3) uint8: the input photos, then the head's labelled front, side and
+    """(H, W, 3) uint8: the input photo(s), then the head's labelled front, side and
     three-quarter renders, all ``size`` pixels high."""
     import cv2
 
@@ -369,7 +414,7 @@ def preview_with_photos(head: Head, pair: PhotoPair, size: int = 720) -> np.ndar
 
     sheet = preview_image(head, size=size)
     photos = []
-    for im in (pair.front, pair.side):
+    for im in (pair.front, pair.side) if pair.side is not None else (pair.front,):
         h, w = im.shape[:2]
         scale = size / h
         small = cv2.resize(im, (max(1, round(w * scale)), size), interpolation=cv2.INTER_AREA)
@@ -422,10 +467,12 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
     Parameters
     ----------
     front, side : path or None
-        The photos (with ``fdp``); None to take them from the annotation file.
+        The photos (with ``fdp``); None to take them from the annotation file. Without a
+        side photo (and no side view in ``fdp``) the head is built from the front photo
+        alone, its depth estimated (:func:`build_head`).
     fdp : path or None
-        Annotations of both photos. Give either ``fdp`` or ``shape_from`` (and optionally
-        ``texture_from``), or neither with both photos: the points are then detected
+        Annotations of the photos. Give either ``fdp`` or ``shape_from`` (and optionally
+        ``texture_from``), or neither with the photos: the points are then detected
         (:func:`recon.detection.detect_annotations`) and written to
         ``OUT/annotations.fdp.json``, kept when the build fails, for a person to correct.
     out_dir : path
@@ -464,9 +511,9 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
                          fix="give --side-facing left (the nose towards the photo's left) or right")
     detected = None
     if shape_path is None:
-        if front is None or side is None:
+        if front is None:
             raise InputError("no photos and no annotations given", where="recon build",
-                             fix="give the two photos (recon build FRONT SIDE -o OUT: the points are detected), or "
+                             fix="give the photos (recon build FRONT [SIDE] -o OUT: the points are detected), or "
                                  "--fdp F.fdp.json")
         say("detecting the feature points")
         detected = shape_path = detect_annotations(front, side, Path(out_dir) / DETECTED_NAME,
@@ -502,18 +549,28 @@ def _build_into(front, side, shape_path, out_dir, texture_from, ipd_mm, focal_px
     from .landmarks.roles import check_roles
 
     for pair in (shape, texture) if texture is not None else (shape,):
+        if pair.side is None:
+            continue
         for warning in check_roles(pair.front, pair.side, pair.paths.get("front", "front photo"),
                                    pair.paths.get("side", "side photo")):
             say(f"warning: {warning}")
     focal_from = "given" if focal_px is not None else None
-    if focal_px is None:
+    if focal_px is None and shape.side is None:
+        focal_px, note = photo_focal_px(shape.paths["front"])
+        focal_from = "exif" if focal_px is not None else None
+        say(note if focal_px is not None else "no focal length recorded in the front photo: estimated from the face")
+    elif focal_px is None:
         focal_px, note = photos_focal_px(shape.paths["front"], shape.paths["side"])
         focal_from = "exif" if focal_px is not None else None
         say(note)
     res = build_head(shape, texture, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
                      texture_size=texture_size, atlas=atlas, keep_lighting=keep_lighting, progress=say,
                      height_tol_mm=height_tol_mm)
+    fit = res.head.metadata.get("fit", {})
+    if shape.side is None and focal_from is None:
+        focal_px, focal_from = fit.get("focal_px"), fit.get("focal_from")
     options = {"ipd_mm": ipd_mm, "focal_px": focal_px, "focal_from": focal_from, "method": method,
+               "photos": "front and side" if shape.side is not None else "front only (depth estimated)",
                "height_tol_mm": height_tol_mm,
                "texture_size": texture_size, "keep_lighting": keep_lighting,
                "atlas": atlas, "shape_texture_separation": texture is not None}

@@ -54,12 +54,15 @@ def fit(front: Path = typer.Argument(..., help="Front photo (JPEG/PNG)."),
 
 @app.command()
 def build(front: Path = typer.Argument(None, help="Front photo (JPEG/PNG); by default the one the annotations name."),
-          side: Path = typer.Argument(None, help="Side (profile) photo; by default the one the annotations name."),
-          fdp: Path = typer.Option(None, "--fdp", help="Annotations of both photos (*.fdp.json)."),
+          side: Path = typer.Argument(None, help="Side (profile) photo; by default the one the annotations name. "
+                                                 "Without one the head is built from the front photo alone "
+                                                 "(its depth estimated)."),
+          fdp: Path = typer.Option(None, "--fdp", help="Annotations of the photos (*.fdp.json)."),
           out: Path = typer.Option(Path("head_out"), "-o", "--out", help="Output folder."),
           ipd: float = typer.Option(63.0, "--ipd", help="Interpupillary distance in mm (photos carry no size)."),
           focal: float = typer.Option(None, "--focal", help="Focal length in pixels [default: from the photos' EXIF; "
-                                                          "orthographic cameras if they record none]."),
+                                                          "if they record none, orthographic cameras for two "
+                                                          "photos, estimated from the face for one]."),
           method: str = typer.Option("dffd", "--method", help="dffd (exact Sibson) or rbf (thin-plate spline)."),
           texture_size: int = typer.Option(2048, "--texture-size", help="Side of the square texture in pixels."),
           atlas: bool = typer.Option(False, "--atlas", help="Re-pack the texture into a non-overlapping atlas (xatlas)."),
@@ -77,9 +80,11 @@ def build(front: Path = typer.Argument(None, help="Front photo (JPEG/PNG); by de
           ) -> None:
     """Shape, texture and export in one step: head.glb, head.obj + head.mtl + texture.png, head.fdp.json, preview.png.
 
-    Without --fdp the points are detected on the two photos and written to OUT/annotations.fdp.json
+    Without --fdp the points are detected on the photos and written to OUT/annotations.fdp.json
     (unreviewed), kept when the build fails: correct them with recon annotate FRONT SIDE --fdp
-    OUT/annotations.fdp.json and build again with --fdp."""
+    OUT/annotations.fdp.json and build again with --fdp. From a front photo alone (no SIDE) the
+    face's depth comes from a statistical identity model fitted to its points, and the sides of
+    the texture from a model of the skin; head.fdp.json records that the depth is estimated."""
     from .build import run_build
 
     paths = run_build(front, side, fdp, out, ipd_mm=ipd, focal_px=focal, method=method, texture_size=texture_size,

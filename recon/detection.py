@@ -21,7 +21,7 @@ __all__ = ["DETECTED_NAME", "detect_annotations", "correction_hint"]
 DETECTED_NAME = "annotations.fdp.json"
 
 
-def detect_annotations(front: str | os.PathLike, side: str | os.PathLike, path: str | os.PathLike,
+def detect_annotations(front: str | os.PathLike, side: str | os.PathLike | None, path: str | os.PathLike,
                        detect: Callable | None = None, side_facing: str | None = None,
                        where: str = "recon build") -> Path:
     """Feature points detected on two photos, written to ``path`` marked unreviewed.
@@ -29,7 +29,7 @@ def detect_annotations(front: str | os.PathLike, side: str | os.PathLike, path: 
     Parameters
     ----------
     front, side : path
-        The photos.
+        The photos; ``side`` None for a front photo alone.
     path : path
         Where the annotations go (``"reviewed": false`` in their metadata, so that the
         build drops points whose heights disagree instead of failing; see
@@ -61,7 +61,8 @@ def detect_annotations(front: str | os.PathLike, side: str | os.PathLike, path: 
             raise InputError(f"{path} holds points a person placed or checked", where=where,
                              fix=f"build with them: recon build {front} {side} --fdp {path} -o ...; or move the "
                                  "file away to detect the points again")
-    front, side = require_file(front, "front photo"), require_file(side, "side photo")
+    front = require_file(front, "front photo")
+    side = require_file(side, "side photo") if side is not None else None
     if detect is None:
         from .landmarks import detector
 
@@ -75,6 +76,8 @@ def detect_annotations(front: str | os.PathLike, side: str | os.PathLike, path: 
     if not isinstance(found, FdpFile):
         raise TypeError(f"automatic detection returned {type(found).__name__}, not an FdpFile")
     for name, photo in (("front", front), ("side", side)):
+        if photo is None:
+            continue
         if name not in found.views or not found.views[name].points:
             raise InputError(f"automatic detection found no feature points on the {name} photo", where=photo,
                              fix="check that the photo shows the face, or mark the points with recon annotate")
@@ -87,5 +90,6 @@ def detect_annotations(front: str | os.PathLike, side: str | os.PathLike, path: 
 
 def correction_hint(front, side, fdp_path) -> str:
     """How to correct detected points and build again."""
-    return (f"check and correct them with: recon annotate {front} {side} --fdp {fdp_path}, then build again with "
+    photos = f"{front} {side}" if side is not None else f"{front}"
+    return (f"check and correct them with: recon annotate {photos} --fdp {fdp_path}, then build again with "
             f"--fdp {fdp_path}")

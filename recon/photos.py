@@ -23,7 +23,8 @@ import numpy as np
 from mpeg4.errors import InputError, require_file
 
 __all__ = ["MIN_PHOTO_PX", "MAX_PHOTO_PIXELS", "read_photo", "decode_photo", "photo_size", "photo_scale",
-           "view_at_size", "check_photo", "exif_focal_px", "photos_focal_px"]
+           "view_at_size", "check_photo", "exif_focal_px", "photo_focal_px",
+           "photos_focal_px"]
 
 #: Shortest side (pixels) a photo needs for a texture worth having.
 MIN_PHOTO_PX = 256
@@ -193,6 +194,16 @@ def exif_focal_px(path: str | os.PathLike, kind: str = "photo") -> tuple[float, 
     if f35 is None:
         return None
     return f35 / FILM_DIAGONAL_MM * diagonal, f35
+
+
+def photo_focal_px(photo: str | os.PathLike, name: str = "front photo") -> tuple[float | None, str]:
+    """A photo's focal length in pixels from its EXIF (None when it records none), and
+    what was found."""
+    found = exif_focal_px(photo, name)
+    if found is None:
+        return None, f"no focal length recorded in the {name}"
+    f, mm = found
+    return f, f"focal length {f:.0f} px from the {name}'s EXIF ({mm:.0f} mm, 35 mm equivalent)"
 
 
 def photos_focal_px(front: str | os.PathLike, side: str | os.PathLike) -> tuple[float | None, str]:

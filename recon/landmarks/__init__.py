@@ -59,6 +59,13 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
     """
     from .facing import AGREE
 
+    if side is None:  # a front photo alone
+        (front_mask,) = head_masks([front])
+        f = detect_front(front, front_name, front_mask)
+        view = ViewAnnotation(image=None, width=int(front.shape[1]), height=int(front.shape[0]),
+                              points=dict(f.points), confidence=dict(f.confidence))
+        return FdpFile(views={"front": view}, metadata={"landmarks": {
+            "method": "recon.landmarks (MediaPipe face mesh + silhouettes)", "source": {"front": dict(f.source)}}})
     front_mask, side_mask = head_masks([front, side])
     f = detect_front(front, front_name, front_mask)
     s, shown = detect_side(side, f, front.shape[0], side_name, side_mask, facing=side_facing)
@@ -81,13 +88,14 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
     return FdpFile(views=views, metadata=meta)
 
 
-def detect(front_path: str | os.PathLike, side_path: str | os.PathLike, side_facing: str | None = None) -> FdpFile:
+def detect(front_path: str | os.PathLike, side_path: str | os.PathLike | None, side_facing: str | None = None) -> FdpFile:
     """Feature points on a front and a side photo, with confidences.
 
     Parameters
     ----------
     front_path, side_path : path
-        The photos (JPEG/PNG; EXIF orientation applied, as the annotation page shows them).
+        The photos (JPEG/PNG; EXIF orientation applied, as the annotation page shows them);
+        ``side_path`` None for a front photo alone (only its view is returned).
     side_facing : {"left", "right"}, optional
         Where the nose points in the side photo (found when omitted).
 
@@ -106,13 +114,13 @@ def detect(front_path: str | os.PathLike, side_path: str | os.PathLike, side_fac
     """
     from recon.photos import check_photo, photo_scale, photo_size, read_photo, view_at_size
 
-    paths = {"front": front_path, "side": side_path}
+    paths = {"front": front_path, "side": side_path} if side_path is not None else {"front": front_path}
     sizes = {n: photo_size(p, f"{n} photo") for n, p in paths.items()}
     for n, size in sizes.items():
         check_photo(size, os.fspath(paths[n]))
     scale = photo_scale(sizes.values())  # a huge photo is read smaller, its points carried back
-    front, side = (read_photo(paths[n], f"{n} photo", scale) for n in ("front", "side"))
-    fdp = detect_images(front, side, os.fspath(front_path), os.fspath(side_path), side_facing)
+    front, side = (read_photo(paths[n], f"{n} photo", scale) if n in paths else None for n in ("front", "side"))
+    fdp = detect_images(front, side, os.fspath(front_path), os.fspath(side_path or ""), side_facing)
     for n, p in paths.items():
         fdp.views[n] = view_at_size(fdp.views[n], *sizes[n])
         fdp.views[n].image = os.fspath(p)

@@ -18,7 +18,7 @@ from mpeg4.head import Head
 from .calibrate import DEFAULT_IPD_MM, Calibration, calibrate
 from .deform import deform_head
 
-__all__ = ["fit_head", "run_fit", "image_size", "attach_photo_sizes", "require_views"]
+__all__ = ["fit_head", "fit_head_front", "has_side", "run_fit", "image_size", "attach_photo_sizes", "require_views"]
 
 
 def image_size(path: str | os.PathLike) -> tuple[int, int]:
@@ -28,10 +28,11 @@ def image_size(path: str | os.PathLike) -> tuple[int, int]:
     return photo_size(path)
 
 
-def require_views(fdp, where: str) -> dict:
-    """The ``front`` and ``side`` views of an annotation file, refusing one with no points."""
+def require_views(fdp, where: str, names=("front", "side")) -> dict:
+    """The ``front`` and ``side`` views (or those ``names``) of an annotation file, refusing
+    one with no points."""
     views = {}
-    for name in ("front", "side"):
+    for name in names:
         view = fdp.views.get(name)
         if view is None or not view.points:
             raise InputError(f"no feature points for the {name} photo", where=f"{where}, views",
@@ -116,6 +117,63 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
         visible_side=cal.visible_side, point_sources=cal.source,
         height_residual_mm={k: round(v, 3) for k, v in cal.height_residual_mm.items()}, dropped_points=cal.dropped))
     return head, cal
+
+
+def has_side(fdp) -> bool:
+    """Whether an annotation file has points on a side photo (else the head comes from the
+    front photo alone, :func:`fit_head_front`)."""
+    view = fdp.views.get("side")
+    return view is not None and bool(view.points)
+
+
+def fit_head_front(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
+                   method: str = "dffd", where: str = "fdp.json", estimate_focal: bool = True):
+    """The generic head deformed to the feature points of a front photo alone.
+
+    The identity model fitted to the front photo's points gives their depth and the rest
+    of the head (:func:`recon.shape.from_front.fit_front`); its head is then moved onto the
+    3D points by the same deformation as the two-photo route's (:func:`deform_head`).
+
+    Parameters
+    ----------
+    fdp : mpeg4.io.fdp_json.FdpFile
+        With a ``front`` view (pixels; the photo's size).
+    generic, ipd_mm, method, where
+        See :func:`fit_head`.
+    focal_px : float, optional
+        The photo's focal length, pixels; estimated from the face when None and
+        ``estimate_focal`` (see :func:`recon.shape.from_front.fit_front`).
+
+    Returns
+    -------
+    head : Head
+        ``metadata["fit"]`` records that the depth is estimated, the focal length and where
+        it came from, and each point's source.
+    front_fit : recon.shape.from_front.FrontFit
+    """
+    from .from_front import fit_front
+
+    view = require_views(fdp, where, ("front",))["front"]
+    if not (view.width and view.height):
+        raise InputError("the front view records no photo size", where=f"{where}, views.front",
+                         fix="give the front photo, whose size the points were marked on")
+    if generic is None:
+        from mpeg4.generic_head import load_generic_head
+
+        generic = load_generic_head()
+    try:
+        ff = fit_front(view.points, view.width, view.height, generic, ipd_mm=ipd_mm, focal_px=focal_px,
+                       estimate_focal=estimate_focal, confidence=view.confidence or None)
+    except InputError as e:
+        raise InputError(e.what, where=f"{where}, views.front", fix=e.fix) from None
+    head = deform_head(ff.head, ff.points, method=method)
+    head.metadata = dict(head.metadata, fit=dict(
+        depth="estimated: identity model fitted to the front photo (no side photo)",
+        ipd_mm=ipd_mm, camera="orthographic" if ff.focal_px is None else "pinhole",
+        focal_px=None if ff.focal_px is None else round(ff.focal_px, 1), focal_from=ff.focal_from,
+        focal_costs=ff.candidates, model_rms_px=round(ff.rms_px, 2),
+        model_coefficients=[round(float(c), 3) for c in ff.coefficients], point_sources=ff.source))
+    return head, ff
 
 
 def run_fit(front_photo, side_photo, fdp_path, out_dir, ipd_mm: float = DEFAULT_IPD_MM,

@@ -135,8 +135,8 @@ def _fill_outside(photo: np.ndarray, valid: np.ndarray) -> np.ndarray:
     return np.where(valid[..., None], photo, filled)
 
 
-def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, front: FittedCamera,
-                 side: FittedCamera, size: int = 2048, blend: str = "opencv", levels: int | None = None,
+def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | None, front: FittedCamera,
+                 side: FittedCamera | None, size: int = 2048, blend: str = "opencv", levels: int | None = None,
                  delight: bool = True, progress: Callable[[str], None] | None = None) -> SkinTexture:
     """Build the skin's texture from the two photos and give every skin vertex a texture
     coordinate.
@@ -146,9 +146,11 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
     head : Head
         The head fitted to the person (its feature points give the feature lines).
     front_photo, side_photo : (H, W, 3) uint8
-        The photos, RGB, row 0 at the top.
+        The photos, RGB, row 0 at the top. Without a side photo (None) the sides come from
+        a skin model fitted to the face (:mod:`recon.texture.skin_model`).
     front, side : FittedCamera
-        Their cameras (:func:`recon.texture.cameras.fit_camera` on the head's feature points).
+        Their cameras (:func:`recon.texture.cameras.fit_camera` on the head's feature
+        points); ``side`` is None with no side photo.
     size : int
         Texture size in pixels (square).
     blend : {"opencv", "skimage"}
@@ -170,6 +172,8 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
     times = {}
     t0 = time.perf_counter()
     for name, photo in (("front", front_photo), ("side", side_photo)):
+        if photo is None and name == "side":
+            continue
         if photo.ndim != 3 or photo.shape[2] != 3 or photo.dtype != np.uint8:
             raise InputError(f"the {name} photo is {photo.shape} {photo.dtype}, expected (H, W, 3) uint8",
                              where="texture", fix="load it as RGB")
@@ -178,6 +182,11 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
     skin = head.skin
     V = skin.vertices
     pts = head.fp_positions()
+    front_only = side_photo is None
+    if front_only:
+        from .skin_model import virtual_side_camera
+
+        side = virtual_side_camera(V, front.camera.width, front.camera.height)
     mirrored = side.flipped()
     cams = {"front": front, "side": side, "mirrored": mirrored}
     # Which side of the face the side photo shows: the side its camera stands on.
@@ -239,7 +248,7 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
     uv = np.c_[(tex_px[:, 0] + 0.5) / size, 1.0 - (tex_px[:, 1] + 0.5) / size]
     times["layout"] = time.perf_counter() - t1
 
-    photos = {"front": front_photo, "side": side_photo}
+    photos = {"front": front_photo} if front_only else {"front": front_photo, "side": side_photo}
     head_masks = {}
     for key, photo in photos.items():
         d = depth[key]
@@ -272,7 +281,7 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
     grid = max(1, size // 256)  # the warps are piecewise affine: a coarse map, linearly refined
     coarse = (int(np.ceil(size / grid)) + 1,) * 2
     G = np.linalg.inv(A) @ np.diag([grid, grid, 1.0])  # coarse grid pixel → composite pixel
-    for photo in (fill["side"], np.ascontiguousarray(fill["side"][:, ::-1])):
+    for photo in () if front_only else (fill["side"], np.ascontiguousarray(fill["side"][:, ::-1])):
         warp = warps[SEEN] if len(layers) == 1 else warps[MIRRORED]
         cmap = warp.inverse_map(G, coarse)
         # Texel (x, y) sits at (x / grid, y / grid) on the coarse map.
@@ -286,6 +295,11 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray, fr
     say("blending the three layers (multiresolution spline)")
     t3 = time.perf_counter()
     masks = _layer_masks(A, polygon, pts, front, size, seen_sign)
+    if front_only:
+        from .skin_model import fit_skin_model, skin_model_layer
+
+        layer = skin_model_layer(fit_skin_model(layers[0], masks[0]))
+        layers += [layer, layer]
     texture = blend_multiband(layers, masks, levels=levels, method=blend)
     texture[size - patch:, :patch] = _HIDDEN_RGB
     times["blend"] = time.perf_counter() - t3

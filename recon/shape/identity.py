@@ -1,0 +1,129 @@
+"""The statistical identity model shipped beside the generic head.
+
+A head is the generic head plus a weighted sum of identity modes, each one standard
+deviation of a principal component of the ICT FaceKit's scanned identities: a head
+``generic + sum_k c_k mode_k`` with ``c ~ N(0, I)`` is a plausible person. The model is
+the ICT FaceKit's first 50 modes on the generic head's vertices
+(``scripts/build_identity_model.py``), stored as int8 with one scale per mode in
+``data/generic_head/identity_model.npz`` (2.3 MB; at most 0.05 mm from the full-precision
+mode per vertex and mode).
+
+:func:`recon.shape.from_front.fit_front` fits it to the points of a front photo.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mpeg4.errors import InputError
+from mpeg4.head import Head
+
+__all__ = ["IdentityModel", "build_identity_model", "write_identity_model", "load_identity_model",
+           "identity_model_path"]
+
+
+def identity_model_path() -> Path:
+    """``identity_model.npz`` beside the generic head in use."""
+    from mpeg4.generic_head import generic_head_path
+
+    return generic_head_path().with_name("identity_model.npz")
+
+
+@dataclass
+class IdentityModel:
+    """Identity modes on a head's vertices.
+
+    Attributes
+    ----------
+    modes : dict of str to (K, n, 3) float64
+        Per part of the head (its order), each mode's displacement of the part's vertices,
+        metres, one standard deviation.
+    """
+
+    modes: dict[str, np.ndarray]
+
+    @property
+    def n_modes(self) -> int:
+        return next(iter(self.modes.values())).shape[0]
+
+    @property
+    def n_vertices(self) -> int:
+        return sum(m.shape[1] for m in self.modes.values())
+
+    def check(self, head: Head, where: str = "identity model") -> None:
+        """Refuse a head whose parts do not match the model's."""
+        for name, part in head.parts.items():
+            m = self.modes.get(name)
+            if m is None or m.shape[1] != part.n_vertices:
+                raise InputError(f"the identity model does not fit the head's part {name!r} "
+                                 f"({part.n_vertices} vertices, the model has "
+                                 f"{'none' if m is None else m.shape[1]})", where=where,
+                                 fix="use the generic head the model was built for "
+                                     "(scripts/build_identity_model.py rebuilds it)")
+
+    def head(self, generic: Head, coefficients: np.ndarray) -> Head:
+        """``generic`` reshaped by ``coefficients`` (K,) (standard deviations of each mode)."""
+        c = np.asarray(coefficients, dtype=np.float64)
+        moves = {name: np.tensordot(c, self.modes[name], 1) for name in generic.parts}
+        out = generic.with_vertices({name: part.vertices + moves[name] for name, part in generic.parts.items()})
+        for name, part in out.parts.items():
+            if part.centre is not None:  # an eyeball's centre goes with the eyeball
+                part.centre = part.centre + moves[name].mean(axis=0)
+        return out
+
+    def point_basis(self, head: Head, ids) -> np.ndarray:
+        """(len(ids), 3, K): how each feature point of ``head`` moves per unit of each mode."""
+        out = np.empty((len(ids), 3, self.n_modes))
+        for n, i in enumerate(ids):
+            b = head.feature_points[i]
+            m = self.modes[b.part][:, list(b.vertices)]  # (K, k, 3)
+            out[n] = np.einsum("kvj,v->jk", m, np.asarray(b.weights, dtype=np.float64))
+        return out
+
+
+def build_identity_model(deltas_cm: np.ndarray, generic: Head) -> IdentityModel:
+    """The model from ICT FaceKit identity deltas (K, N, 3), centimetres, on ICT's vertex
+    numbering, taken at the vertices each part of ``generic`` came from
+    (``metadata["ict_vertex_ids"]``)."""
+    modes = {}
+    for name, part in generic.parts.items():
+        ids = generic.metadata["ict_vertex_ids"][name]
+        idx = np.arange(*ids) if len(ids) == 2 and ids[1] - ids[0] == part.n_vertices else np.asarray(ids)
+        modes[name] = deltas_cm[:, idx].astype(np.float64) * 0.01
+    return IdentityModel(modes)
+
+
+def write_identity_model(model: IdentityModel, path: str | os.PathLike) -> float:
+    """Write the model (int8, one scale per mode); returns the largest quantisation error, metres."""
+    names = list(model.modes)
+    sizes = [model.modes[n].shape[1] for n in names]
+    allm = np.concatenate([model.modes[n] for n in names], axis=1)
+    scale = np.abs(allm).max(axis=(1, 2)) / 127.0
+    q = np.round(allm / scale[:, None, None]).astype(np.int8)
+    error = float(np.abs(q * scale[:, None, None] - allm).max())
+    np.savez_compressed(path, modes=q, scale=scale, parts=np.array(names), part_sizes=np.array(sizes))
+    return error
+
+
+@functools.lru_cache(maxsize=2)
+def _read(path: str) -> IdentityModel:
+    with np.load(path) as d:
+        q, scale = d["modes"], d["scale"]
+        names, sizes = [str(n) for n in d["parts"]], d["part_sizes"]
+    allm = q.astype(np.float64) * scale[:, None, None]
+    bounds = np.r_[0, np.cumsum(sizes)]
+    return IdentityModel({n: allm[:, a:b] for n, a, b in zip(names, bounds[:-1], bounds[1:])})
+
+
+def load_identity_model(path: str | os.PathLike | None = None) -> IdentityModel:
+    """The shipped model (read once per process), or the one at ``path``."""
+    path = Path(path) if path is not None else identity_model_path()
+    if not path.exists():
+        raise InputError("the identity model is missing", where=str(path),
+                         fix="rebuild it with python3 scripts/build_identity_model.py")
+    return _read(os.fspath(path))
