@@ -43,6 +43,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 DEFAULT = ROOT.parent / "shared" / "data" / "real_photos" / "pairs"
+PORTRAITS = ROOT.parent / "shared" / "data" / "real_photos" / "front"
 EXTENSIONS = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
 FIGURES = ("built", "point_agreement_ipd_pct", "profile_line_ipd_pct", "silhouette_iou_front",
            "silhouette_iou_side", "heldout_profile_line_ipd_pct", "heldout_silhouette_iou", "identity_distance",
@@ -127,26 +128,8 @@ def measure(name, front, side, other, out: Path, rec: Recogniser, texture_size: 
     facing = found.metadata.get("landmarks", {}).get("side_facing", {}).get("facing", "left")
     images = {"front": read_photo(front), "side": read_photo(side)}
     for view in ("front", "side"):
-        cam = res.cameras[view].camera
-        pts = found.views[view].points
-        ipd = rp.ipd_px(head, cam)
-        mask, albedo = rp.rendered_mask(head, cam, textured=True)
-        region = rp.head_region(images[view])
-        fig[f"point_agreement_{view}_ipd_pct"] = rp.point_agreement(head, cam, pts)
-        chin = pts.get("2.1", [0, images[view].shape[0]])[1]
-        fig[f"silhouette_iou_{view}"] = rp.silhouette_iou(region, mask, chin)
-        if view == "side":
-            fig["profile_line_ipd_pct"] = rp.profile_line(region, mask, pts, facing, ipd)
-        else:
-            fig["skin_delta_e"] = rp.skin_delta_e(images[view], albedo, mask, pts, ipd)
-        lit = render_lit(head, cam)
-        if rec.ok:
-            e_photo = rec.embed(images[view]) if view == "front" else None
-            e_render = rec.embed(lit) if view == "front" else None
-            if e_photo is not None and e_render is not None:
-                fig["identity_distance"] = float(np.linalg.norm(e_photo - e_render))
-                fig["_embedding"] = e_photo
-        pics[view] = (images[view], lit, mask)
+        measure_view(fig, pics, head, res.cameras[view].camera, images[view], found.views[view].points, view,
+                     facing, rec)
     if other is not None:
         from recon.landmarks import detect
         from recon.photos import photos_focal_px
@@ -168,6 +151,80 @@ def measure(name, front, side, other, out: Path, rec: Recogniser, texture_size: 
             fig["heldout_profile_line_ipd_pct"] = rp.profile_line(region, mask, pts, facing_o, rp.ipd_px(head, cam))
             fig["heldout_silhouette_iou"] = rp.silhouette_iou(region, mask, pts.get("2.1", [0, img.shape[0]])[1])
             pics["held-out"] = (img, render_lit(head, cam), mask)
+    return fig, pics
+
+
+def measure_view(fig: dict, pics: dict, head, cam, image: np.ndarray, pts: dict, view: str, facing: str,
+                 rec: Recogniser) -> None:
+    """The figures of one photo (point agreement, silhouette; profile line on a side photo,
+    skin colour and identity on a front photo) into ``fig``, its pictures into ``pics``."""
+    from recon.evaluate import real_photos as rp
+
+    ipd = rp.ipd_px(head, cam)
+    mask, albedo = rp.rendered_mask(head, cam, textured=True)
+    region = rp.head_region(image)
+    fig[f"point_agreement_{view}_ipd_pct"] = rp.point_agreement(head, cam, pts)
+    chin = pts.get("2.1", [0, image.shape[0]])[1]
+    fig[f"silhouette_iou_{view}"] = rp.silhouette_iou(region, mask, chin)
+    if view == "side":
+        fig["profile_line_ipd_pct"] = rp.profile_line(region, mask, pts, facing, ipd)
+    else:
+        fig["skin_delta_e"] = rp.skin_delta_e(image, albedo, mask, pts, ipd)
+    lit = render_lit(head, cam)
+    if rec.ok and view == "front":
+        e_photo, e_render = rec.embed(image), rec.embed(lit)
+        if e_photo is not None and e_render is not None:
+            fig["identity_distance"] = float(np.linalg.norm(e_photo - e_render))
+            fig["_embedding"] = e_photo
+    pics[view] = (image, lit, mask)
+
+
+def measure_front_only(name, front, side, out: Path, rec: Recogniser, texture_size: int) -> tuple[dict, dict]:
+    """Build one person from the front photo alone and measure it on that photo and, when
+    there is one, on the profile photo the build never saw (through a camera fitted to the
+    points detected there)."""
+    from mpeg4.errors import InputError
+    from mpeg4.io import read_fdp_json
+    from recon.build import run_build
+    from recon.photos import read_photo
+
+    fig, pics = {}, {}
+    built = []
+    t0 = time.perf_counter()
+    try:
+        run_build(front, None, None, out, texture_size=texture_size, result=built)
+    except InputError as e:
+        fig.update(built=0, error=str(e), seconds=round(time.perf_counter() - t0, 1))
+        return fig, pics
+    fig.update(built=1, seconds=round(time.perf_counter() - t0, 1))
+    res = built[0]
+    head = res.head
+    fit = head.metadata["fit"]
+    fig["focal_from"] = fit["focal_from"]
+    cam = res.cameras["front"].camera
+    if cam.perspective:
+        fig["focal_35mm"] = round(cam.focal_px * 43.27 / float(np.hypot(cam.width, cam.height)), 1)
+        fig["camera_distance_cm"] = round(float(np.linalg.norm(cam.centre - head.fp_position("9.3"))) * 100, 1)
+    found = read_fdp_json(out / "annotations.fdp.json")
+    measure_view(fig, pics, head, cam, read_photo(front), found.views["front"].points, "front", "left", rec)
+    if side is not None:
+        from recon.landmarks import detect
+        from recon.texture.cameras import fit_camera
+
+        try:
+            seen = detect(front, side)
+        except InputError as e:
+            fig["side_error"] = str(e)
+        else:
+            img = read_photo(side)
+            pts = seen.views["side"].points
+            from recon.photos import photos_focal_px
+
+            focal, _ = photos_focal_px(front, side)  # as the two-photo build would take it
+            unseen = fit_camera(head.fp_positions(), pts, img.shape[1], img.shape[0], focal_px=focal,
+                                where=str(side)).camera
+            facing = seen.metadata["landmarks"]["side_facing"]["facing"]
+            measure_view(fig, pics, head, unseen, img, pts, "side", facing, rec)
     return fig, pics
 
 
@@ -212,6 +269,11 @@ def main(argv=None) -> int:
     ap.add_argument("--people", type=int, default=None, help="at most this many people (a smoke run)")
     ap.add_argument("--texture-size", type=int, default=1024)
     ap.add_argument("--sheet", type=Path, default=ROOT / "test-artifacts" / "real_photos_sheet.png")
+    ap.add_argument("--front-only", action="store_true",
+                    help="build each pair from its front photo alone too (judged on the profile it never saw), "
+                         "and each portrait under --portraits")
+    ap.add_argument("--portraits", type=Path, nargs="*", default=[PORTRAITS],
+                    help="folders of frontal portraits for --front-only (every photo in them and their subfolders)")
     args = ap.parse_args(argv)
     for f in args.folders:
         if not f.is_dir():
@@ -241,6 +303,8 @@ def main(argv=None) -> int:
     others = [float(np.linalg.norm(embeddings[a] - embeddings[b])) for i, a in enumerate(names) for b in names[i + 1:]]
     contact_sheet(sheet, args.sheet)
     print(f"# contact sheet: {args.sheet}")
+    if args.front_only:
+        front_only(todo, args, rec, results)
 
     def median(key):
         vals = [f[key] for f in results.values() if key in f and np.isfinite(f[key])]
@@ -257,6 +321,47 @@ def main(argv=None) -> int:
     print(f"identity_distance_other_people: {np.median(others) if others else float('nan'):.3f}")
     print(f"skin_delta_e: {median('skin_delta_e'):.3f}")
     return 0
+
+
+def portraits(folders) -> list[tuple[str, Path]]:
+    """(name, photo) of every photo under ``folders``."""
+    out = []
+    for folder in folders:
+        if Path(folder).is_dir():
+            out += [(f"{p.parent.name}/{p.stem}", p) for p in sorted(Path(folder).rglob("*"))
+                    if p.suffix.lower() in EXTENSIONS]
+    return out
+
+
+def front_only(todo, args, rec: Recogniser, two_photo: dict) -> None:
+    """``--front-only``: each pair's front photo alone (beside its two-photo figures), then
+    each portrait; prints ``front_only_*`` lines and a contact sheet."""
+    results, sheet = {}, {}
+    runs = [(n, fr, s) for n, fr, s, _ in todo if "+" not in n] + [(n, p, None) for n, p in portraits(args.portraits)]
+    with tempfile.TemporaryDirectory() as tmp:
+        for k, (name, front, side) in enumerate(runs):
+            fig, pics = measure_front_only(name, front, side, Path(tmp) / f"p{k}", rec, args.texture_size)
+            results[name], sheet[name] = fig, pics
+            for key, v in fig.items():
+                if not key.startswith("_"):
+                    print(f"front_only_{key}[{name}]: {v:.3f}" if isinstance(v, float) else
+                          f"front_only_{key}[{name}]: {v}", flush=True)
+    path = args.sheet.with_name(args.sheet.stem + "_front_only.png")
+    contact_sheet(sheet, path)
+    print(f"# front-only contact sheet: {path}")
+
+    def median(rows, key):
+        vals = [f[key] for f in rows if key in f and isinstance(f[key], float) and np.isfinite(f[key])]
+        return float(np.median(vals)) if vals else float("nan")
+
+    pairs = [results[n] for n, _, s in runs if s is not None]
+    alone = [results[n] for n, _, s in runs if s is None]
+    print(f"front_only_built: {sum(f['built'] for f in results.values())} of {len(results)}")
+    for key in ("profile_line_ipd_pct", "silhouette_iou_side"):
+        print(f"front_only_{key}: {median(pairs, key):.3f} (two photos: {median(two_photo.values(), key):.3f})")
+    for key in ("identity_distance", "skin_delta_e", "silhouette_iou_front", "point_agreement_front_ipd_pct"):
+        print(f"front_only_portraits_{key}: {median(alone, key):.3f}")
+    print(f"front_only_seconds: {median(list(results.values()), 'seconds'):.1f}")
 
 
 if __name__ == "__main__":

@@ -298,7 +298,16 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     if front_only:
         from .skin_model import fit_skin_model, skin_model_layer
 
-        layer = skin_model_layer(fit_skin_model(layers[0], masks[0]))
+        seen = cv2.warpAffine(head_masks["front"].astype(np.uint8), A[:2], (size, size), flags=cv2.INTER_NEAREST) > 0
+        def row(ids):
+            found = [i for i in ids if i in pts]
+            if not found:
+                return None
+            px = front.project(np.array([pts[i] for i in found]))
+            return float(np.mean(px[:, 1]) * A[1, 1] + A[1, 2])
+
+        model = fit_skin_model(layers[0], masks[0], seen, hair_row=row(("10.9", "10.10")), chin_row=row(("2.1",)))
+        layer = skin_model_layer(model)
         layers += [layer, layer]
     texture = blend_multiband(layers, masks, levels=levels, method=blend)
     texture[size - patch:, :patch] = _HIDDEN_RGB

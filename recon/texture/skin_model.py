@@ -47,8 +47,15 @@ class SkinModel:
     mottle: float
 
 
-def fit_skin_model(front_layer: np.ndarray, front_mask: np.ndarray) -> SkinModel:
+def fit_skin_model(front_layer: np.ndarray, front_mask: np.ndarray, head_mask: np.ndarray | None = None,
+                   hair_row: float | None = None, chin_row: float | None = None) -> SkinModel:
     """The skin model of the front photo's layer in texture space.
+
+    Down the face, each row takes the median colour of the face just inside its border;
+    below the chin the neck keeps the chin's colour (a collar is not skin); above
+    ``hair_row`` the sides take the hair's colour: the median of what the front photo shows
+    of the head just outside the face's border there (the face's own colour when it shows
+    none).
 
     Parameters
     ----------
@@ -56,6 +63,11 @@ def fit_skin_model(front_layer: np.ndarray, front_mask: np.ndarray) -> SkinModel
         The (de-lit) front photo brought into texture space.
     front_mask : (S, S) bool
         Where the texture takes the front photo (inside the feature lines).
+    head_mask : (S, S) bool, optional
+        Where the front photo shows the head, in texture space.
+    hair_row, chin_row : float, optional
+        Texture rows of the ears' tops (where the hair at the sides usually ends) and of
+        the chin.
     """
     size = front_layer.shape[0]
     band_px = max(2, int(round(_BAND * size)))
@@ -63,18 +75,24 @@ def fit_skin_model(front_layer: np.ndarray, front_mask: np.ndarray) -> SkinModel
     band = front_mask & ~inner
     img = front_layer.astype(np.float64)
     rows = np.full((size, 3), np.nan)
-    count = band.sum(axis=1)
-    for r in np.flatnonzero(count >= 3):
+    for r in np.flatnonzero(band.sum(axis=1) >= 3):
         rows[r] = np.median(img[r][band[r]], axis=0)
+    index = np.arange(size)
+    if chin_row is not None:
+        rows[index > chin_row] = np.nan
     have = np.flatnonzero(np.isfinite(rows[:, 0]))
     if not len(have):  # no border: the face's own median
         rows[:] = np.median(img[front_mask] if front_mask.any() else img.reshape(-1, 3), axis=0)
     else:
-        for k in range(3):  # rows above and below the face take the nearest known colour
-            rows[:, k] = np.interp(np.arange(size), have, rows[have, k])
-        rows = cv2.GaussianBlur(rows[:, None, :].astype(np.float32), (1, 0), _ROW_SMOOTH * size)[:, 0].astype(float)
-    # The skin's fine variation: the band's texels less their row's colour.
-    # Robust (median absolute deviation): the band crosses eyebrows, ears and hair edges.
+        for k in range(3):  # rows above and below take the nearest known colour
+            rows[:, k] = np.interp(index, have, rows[have, k])
+    if hair_row is not None and head_mask is not None:
+        near = cv2.dilate(front_mask.astype(np.uint8), np.ones((6 * band_px + 1,) * 2, np.uint8)) > 0
+        hair = near & ~front_mask & head_mask & (index < hair_row)[:, None]
+        if hair.sum() >= 20:
+            rows[index < hair_row] = np.median(img[hair], axis=0)
+    rows = cv2.GaussianBlur(rows[:, None, :].astype(np.float32), (1, 0), _ROW_SMOOTH * size)[:, 0].astype(float)
+    # The skin's fine variation (robust: the band crosses eyebrows, ears and hair edges).
     fine = (img - rows[:, None, :])[band].mean(axis=1) if band.any() else np.zeros(1)
     spread = 1.4826 * float(np.median(np.abs(fine - np.median(fine))))
     mottle = float(np.clip(spread / max(float(np.median(rows.mean(axis=1))), 1.0), 0.0, _MOTTLE_MAX))
