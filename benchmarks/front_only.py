@@ -13,11 +13,15 @@ removing the free translation (the mean offset of the front photo's feature poin
   feature points to the identity's true 3D points (the best the template can do);
 - ``front_only``: :func:`recon.shape.fit.fit_head_front` on the front photo's points (the
   focal length given for the pinhole camera, and also estimated, ``front_only_estimated``);
-- ``two_photos``: the calibration of the front and side points and the DFFD
-  (:func:`recon.shape.fit.fit_head`'s route).
+- ``two_photos``: the calibration of the front and side points and the DFFD from the
+  identity model's head fitted to them (:func:`recon.shape.fit.fit_head`'s route), and
+  ``two_photos_from_generic``, the DFFD from the generic head itself (the route before the
+  model).
 
-Medians over the ICT full face area and its narrow face area (no ears, neck or scalp), then
-the time of a whole ``recon build FRONT`` on the embedded example's 1024-px front photo
+Medians over the ICT full face area and its narrow face area (no ears, neck or scalp); then
+the same three heads for the MakeHuman hm08 head (``../shared/data/foreign_heads``, a face
+from another family: marked by ``fmc mark``'s route, photographed the same way, measured as
+the distance of the narrow face from its surface); then the time of a whole ``recon build FRONT`` on the embedded example's 1024-px front photo
 (detection, fit, texture, bundle).
 
 Run: ``python3 benchmarks/front_only.py [--identities 20] [--noise 0 2]``
@@ -54,6 +58,7 @@ def shape_errors(data, generic, k: int, sigma: float, perspective: bool) -> dict
     """Per-vertex skin errors (mm) of each head for identity ``k``."""
     from recon.shape.calibrate import calibrate
     from recon.shape.deform import deform_head, fit_similarity
+    from recon.shape.fit import identity_start
     from recon.shape.from_front import fit_front
 
     truth = generic.with_vertices(part_vertices(generic, identity_vertices(data, np.random.default_rng(1000 + k))))
@@ -79,8 +84,67 @@ def shape_errors(data, generic, k: int, sigma: float, perspective: bool) -> dict
     cal = calibrate(views["front"], views["side"], generic, ipd_mm=ipd, focal_px=focal, front_size=(1024, 1024),
                     side_size=(1024, 1024), height_tol_mm=30)
     goal = {i: p for i, p in cal.points.items() if cal.source[i] != "generic"}
-    head = deform_head(generic, goal)
-    out["two_photos"] = _error(head.skin.vertices, head, tskin, tfp, seen)
+    start, _ = identity_start(generic, goal)
+    for name, base in (("two_photos", start), ("two_photos_from_generic", generic)):
+        head = deform_head(base, goal)
+        out[name] = _error(head.skin.vertices, head, tskin, tfp, seen)
+    return out
+
+
+MAKEHUMAN = ROOT.parent / "shared" / "data" / "foreign_heads" / "makehuman" / "base.obj"
+
+
+def makehuman_head():
+    """The MakeHuman hm08 head (body vertices above the shoulders, decimetres → metres),
+    marked by ``fmc mark``'s route (:func:`recon.mark.mark`)."""
+    import trimesh
+
+    from mpeg4.head import Head, Part
+    from recon.mark import mark
+
+    m = trimesh.load(MAKEHUMAN, process=False, force="mesh", skip_materials=True)
+    v, f = np.asarray(m.vertices), np.asarray(m.faces)
+    keep = (np.arange(len(v)) < 13380) & (v[:, 1] > 6.3)  # the body group's head and neck
+    tri = f[keep[f].all(axis=1)]
+    ids = np.unique(tri)
+    remap = np.full(len(v), -1)
+    remap[ids] = np.arange(len(ids))
+    raw = Head({"skin": Part("skin", v[ids] * 0.1, remap[tri])}, {}, {}, metadata={"units": "m"})
+    return mark(raw, unit="m", up="+y", forward="+z", where="MakeHuman hm08 head").head
+
+
+def makehuman_errors(generic, target) -> dict[str, np.ndarray]:
+    """Per-vertex distance (mm) of each head's narrow face from the MakeHuman surface,
+    after removing the mean offset of the front photo's feature points (exact pixels,
+    orthographic; no correspondence: the nearest surface point)."""
+    import trimesh
+
+    from recon.shape.calibrate import calibrate
+    from recon.shape.deform import deform_head, fit_similarity
+    from recon.shape.fit import identity_start
+    from recon.shape.from_front import fit_front
+
+    tfp = target.fp_positions()
+    tfp = {i: p for i, p in tfp.items() if i in generic.feature_points}
+    surface = trimesh.Trimesh(target.skin.vertices, target.skin.triangles, process=False)
+    views = {v: project(tfp, v, False) for v in ("front", "side")}
+    seen = [i for i in views["front"] if i in generic.feature_points]
+    ipd = np.linalg.norm(tfp["3.5"] - tfp["3.6"]) * 1000
+
+    def distance(head):
+        off = np.mean([head.fp_position(i) - tfp[i] for i in seen], axis=0)
+        _, d, _ = trimesh.proximity.closest_point(surface, head.skin.vertices[NARROW] - off)
+        return d * 1000
+
+    out = {}
+    sim = fit_similarity(np.array([generic.fp_position(i) for i in seen]), np.array([tfp[i] for i in seen]))
+    out["generic"] = distance(generic.with_vertices({n: sim(p.vertices) for n, p in generic.parts.items()}))
+    ff = fit_front(views["front"], 1024, 1024, generic, ipd_mm=ipd, estimate_focal=False)
+    out["front_only"] = distance(deform_head(ff.head, ff.points))
+    cal = calibrate(views["front"], views["side"], generic, ipd_mm=ipd, front_size=(1024, 1024),
+                    side_size=(1024, 1024), height_tol_mm=30)
+    goal = {i: p for i, p in cal.points.items() if cal.source[i] != "generic"}
+    out["two_photos"] = distance(deform_head(identity_start(generic, goal)[0], goal))
     return out
 
 
@@ -100,6 +164,7 @@ def main(argv=None) -> int:
     ap.add_argument("--identities", type=int, default=20)
     ap.add_argument("--noise", type=float, nargs="+", default=[0.0, 2.0])
     ap.add_argument("--no-speed", action="store_true", help="skip the timed build")
+    ap.add_argument("--no-makehuman", action="store_true", help="skip the MakeHuman head")
     args = ap.parse_args(argv)
     if not NPZ.exists():
         print(f"skipped: {NPZ} is absent (the ICT FaceKit test data)")
@@ -120,10 +185,18 @@ def main(argv=None) -> int:
         e = np.stack(errs)
         print(f"{name}_{cam}_sigma{sigma:g}px_face_median_mm: {np.median(e[:, FACE]):.2f} "
               f"(narrow face {np.median(e[:, NARROW]):.2f}, face p95 {np.percentile(e[:, FACE], 95):.2f})")
-    for name in ("generic", "front_only", "two_photos"):
+    for name in ("generic", "front_only", "two_photos", "two_photos_from_generic"):
         e = np.stack(results[("ortho", args.noise[0], name)])
         print(f"{name}_face_median_mm: {np.median(e[:, FACE]):.2f}")
         print(f"{name}_narrow_face_median_mm: {np.median(e[:, NARROW]):.2f}")
+    if MAKEHUMAN.exists() and not args.no_makehuman:
+        try:
+            target = makehuman_head()
+        except Exception as e:  # no detector here, or the marking failed: say so, go on
+            print(f"# makehuman: not measured ({e})")
+        else:
+            for name, d in makehuman_errors(generic, target).items():
+                print(f"makehuman_{name}_narrow_face_median_mm: {np.median(d):.2f} (p95 {np.percentile(d, 95):.2f})")
     if not args.no_speed:
         print(f"front_only_build_seconds: {build_seconds():.1f}")
     return 0

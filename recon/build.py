@@ -164,7 +164,7 @@ def _fit_view_camera(points3d, view, name: str, focal_px, where: str, cal, unrev
     the share of the IPD :func:`_check_cameras` allows) is dropped too, the worst first,
     unless it is one of the face's core points, and listed in ``cal.dropped``.
     """
-    from .shape.calibrate import CORE_GROUPS, _NOT_CORE
+    from .shape.calibrate import is_core
     from mpeg4.catalogue import FEATURE_POINTS
 
     gone = {i for i, d in cal.dropped.items() if d["view"] in (name, "both")}
@@ -176,7 +176,7 @@ def _fit_view_camera(points3d, view, name: str, focal_px, where: str, cal, unrev
             return cam
         limit = _MAX_RESIDUAL_SHARE * _view_scale(view)
         worst = max((i for i in cam.residual_px
-                     if not (FEATURE_POINTS[i].group in CORE_GROUPS and i not in _NOT_CORE)),
+                     if not is_core(i)),
                     key=lambda i: cam.residual_px[i], default=None)
         if cam.rms_px <= limit or worst is None or cam.residual_px[worst] <= limit:
             return cam
@@ -267,7 +267,6 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     say = progress or (lambda m: None)
     times = {}
     t0 = time.perf_counter()
-    say("fitting the generic head to the feature points")
     def focal(pair):
         return None if focal_px is None else focal_px * pair.scale
 
@@ -277,6 +276,7 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
                              fix="build from the front photo alone without --texture-from")
         return _build_front_only(shape, focal(shape), generic, ipd_mm, method, texture_size, atlas, blend,
                                  keep_lighting, say, t0)
+    say("fitting the generic head to the feature points")
     head, cal = fit_head(shape.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal(shape), method=method,
                          where=shape.paths.get("fdp", "fdp.json"), height_tol_mm=height_tol_mm)
     if cal.dropped:
@@ -337,6 +337,9 @@ def _build_front_only(pair: PhotoPair, focal_px, generic, ipd_mm, method, textur
     say("fitting the identity model to the front photo's points (no side photo: the depth is estimated)")
     head, ff = fit_head_front(pair.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal_px, method=method,
                               where=where)
+    if ff.dropped:
+        say(f"left out {len(ff.dropped)} detected points the fitted face misses by far: "
+            + ", ".join(f"{i} ({d:.0f} mm)" for i, d in ff.dropped.items()) + "; check them with recon annotate")
     if ff.focal_from == "estimated":
         say(f"focal length estimated from the face: {ff.focal_px:.0f} px")
     times = {"shape": time.perf_counter() - t0}

@@ -125,7 +125,9 @@ def landmark_detector() -> Callable[[Views], FdpFile]:
                          fix="run bash install.sh, or place the points by hand: recon annotate MESH")
 
     def run(views: Views) -> FdpFile:
-        return detect(os.fspath(views.paths["front"]), os.fspath(views.paths["side"]))
+        # The side render is taken from the face's left (yaw 90): the nose points to the
+        # image's left, which the photo detector need not guess from a grey render.
+        return detect(os.fspath(views.paths["front"]), os.fspath(views.paths["side"]), side_facing="left")
 
     run.__name__ = "recon.landmarks.detect"
     run.guessed = untextured_guesses

@@ -31,7 +31,7 @@ from mpeg4.head import Head
 
 from .deform import bounding_controls, dffd, fit_similarity
 
-__all__ = ["DEFAULT_IPD_MM", "CORE_GROUPS", "Calibration", "HeightsDisagree", "calibrate"]
+__all__ = ["DEFAULT_IPD_MM", "CORE_GROUPS", "is_core", "Calibration", "HeightsDisagree", "calibrate"]
 
 #: Adult mean interpupillary distance (mm) used when the user gives none.
 DEFAULT_IPD_MM = 63.0
@@ -90,6 +90,12 @@ class Calibration:
 #: the cameras are wrong, and dropping points would hide it.
 CORE_GROUPS = (2, 3, 8, 9)
 _NOT_CORE = ("2.11", "2.12", "2.13", "2.14")
+
+
+def is_core(fp_id: str) -> bool:
+    """Whether a point belongs to the face's core (eyes, nose, mouth, chin), which an
+    automatic route never leaves out."""
+    return FEATURE_POINTS[fp_id].group in CORE_GROUPS and fp_id not in _NOT_CORE
 
 
 class HeightsDisagree(InputError):
@@ -193,7 +199,7 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
                 raise
             res = e.residual_mm
             worst = max(res, key=lambda i: abs(res[i]))
-            if FEATURE_POINTS[worst].group in CORE_GROUPS and worst not in _NOT_CORE:
+            if is_core(worst):
                 raise HeightsDisagree(e.residual_mm, e.what + f" (after dropping {', '.join(dropped) or 'nothing'})",
                                       where=e.where, fix="the face's core points (eyes, nose, mouth, chin) cannot "
                                                          "disagree by this much on the same face: check that the two "

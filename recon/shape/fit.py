@@ -12,6 +12,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
+
 from mpeg4.errors import InputError
 from mpeg4.head import Head
 
@@ -69,7 +71,7 @@ def attach_photo_sizes(fdp, sizes: dict[str, tuple[int, int]], where: str, photo
 
 def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
              method: str = "dffd", where: str = "fdp.json", height_tol_mm: float = 8.0,
-             drop_outliers: bool | None = None) -> tuple[Head, Calibration]:
+             drop_outliers: bool | None = None, identity_prior: bool = True) -> tuple[Head, Calibration]:
     """The generic head deformed to the feature points annotated on two photos.
 
     Parameters
@@ -89,6 +91,9 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
         instead of failing; by default when the points are unreviewed (``fdp.metadata
         ["reviewed"]`` is False: automatic detection nobody has checked), weighted by
         their confidences.
+    identity_prior : bool
+        Start the deformation from the identity model's head fitted to the 3D points
+        (:func:`identity_start`) rather than from the generic head itself.
 
     Returns
     -------
@@ -111,12 +116,30 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
     except InputError as e:
         raise InputError(e.what, where=f"{where}, {e.where}" if e.where else where, fix=e.fix) from None
     goal = {i: p for i, p in cal.points.items() if cal.source[i] != "generic"}
-    head = deform_head(generic, goal, method=method)
+    start, coefficients = identity_start(generic, goal) if identity_prior else (generic, None)
+    head = deform_head(start, goal, method=method)
     head.metadata = dict(head.metadata, fit=dict(
-        cal.assumptions, roll_deg=round(cal.roll_deg, 3), side_facing=cal.side_facing,
+        cal.assumptions, start="identity model" if coefficients is not None else "generic head", roll_deg=round(cal.roll_deg, 3), side_facing=cal.side_facing,
         visible_side=cal.visible_side, point_sources=cal.source,
         height_residual_mm={k: round(v, 3) for k, v in cal.height_residual_mm.items()}, dropped_points=cal.dropped))
     return head, cal
+
+
+def identity_start(generic: Head, points) -> tuple[Head, np.ndarray | None]:
+    """The identity model's head nearest 3D feature points (:func:`recon.shape.identity.fit_to_points`),
+    where the deformation onto them starts; the generic head itself (and None) when the
+    shipped model does not fit it (another generic head, ``MPEG4_GENERIC_HEAD``)."""
+    from .identity import load_identity_model
+
+    try:
+        model = load_identity_model()
+        model.check(generic)
+    except InputError:
+        return generic, None
+    from .identity import fit_to_points
+
+    c = fit_to_points(model, generic, points)
+    return model.head(generic, c), c
 
 
 def has_side(fdp) -> bool:
@@ -163,7 +186,8 @@ def fit_head_front(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD
         generic = load_generic_head()
     try:
         ff = fit_front(view.points, view.width, view.height, generic, ipd_mm=ipd_mm, focal_px=focal_px,
-                       estimate_focal=estimate_focal, confidence=view.confidence or None)
+                       estimate_focal=estimate_focal, confidence=view.confidence or None,
+                       drop_outliers=fdp.metadata.get("reviewed") is False)
     except InputError as e:
         raise InputError(e.what, where=f"{where}, views.front", fix=e.fix) from None
     head = deform_head(ff.head, ff.points, method=method)
@@ -172,7 +196,8 @@ def fit_head_front(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD
         ipd_mm=ipd_mm, camera="orthographic" if ff.focal_px is None else "pinhole",
         focal_px=None if ff.focal_px is None else round(ff.focal_px, 1), focal_from=ff.focal_from,
         focal_costs=ff.candidates, model_rms_px=round(ff.rms_px, 2),
-        model_coefficients=[round(float(c), 3) for c in ff.coefficients], point_sources=ff.source))
+        model_coefficients=[round(float(c), 3) for c in ff.coefficients], point_sources=ff.source,
+        dropped_points=ff.dropped))
     return head, ff
 
 

@@ -31,10 +31,10 @@ from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.errors import InputError
 from mpeg4.head import Head
 
-from .calibrate import DEFAULT_IPD_MM
+from .calibrate import DEFAULT_IPD_MM, is_core
 from .identity import IdentityModel, load_identity_model
 
-__all__ = ["FrontFit", "fit_front", "FOCAL_35MM_CANDIDATES", "POINT_SD_MM"]
+__all__ = ["FrontFit", "fit_front", "FOCAL_35MM_CANDIDATES", "POINT_SD_MM", "OUTLIER_SDS"]
 
 #: 35 mm-equivalent focal lengths tried when the photo's focal length is unknown (mm; the
 #: sensor's diagonal 43.3 mm), besides an orthographic camera.
@@ -43,6 +43,9 @@ FOCAL_35MM_CANDIDATES = (24.0, 28.0, 35.0, 50.0, 85.0, 135.0)
 #: Expected distance (mm on the face) between a marked point and where the model can put
 #: it: the marking's spread and what 50 modes cannot express of a face.
 POINT_SD_MM = 2.0
+
+#: A detected point the fitted face misses by more than this many spreads is left out.
+OUTLIER_SDS = 4.0
 
 _ROUNDS = 10
 _STEP = 1e-4  # metres, for the projection's derivatives
@@ -75,6 +78,9 @@ class FrontFit:
         The posterior's cost at the solution (lower is better; compares cameras).
     candidates : dict
         Focal length tried (35 mm-equivalent mm, or ``"orthographic"``) → cost.
+    dropped : dict of str to float
+        Detected points left out because the fitted face missed them by more than
+        :data:`OUTLIER_SDS` times their spread: FP id → miss, mm (their place is the model's).
     """
 
     head: Head
@@ -87,6 +93,7 @@ class FrontFit:
     rms_px: float
     cost: float
     candidates: dict = field(default_factory=dict)
+    dropped: dict = field(default_factory=dict)
 
 
 def _usable(front: Mapping, head: Head) -> list[str]:
@@ -135,13 +142,14 @@ def _fit_one(front, ids, weights, generic, model, width, height, focal_px, point
     cost = float(np.sum(w * np.sum(r ** 2, axis=1)) + c @ c)
     # Each marked point moved across the line of sight onto its pixel (least-norm move).
     moves = np.einsum("nij,nj->ni", np.linalg.pinv(J), r)
-    return c, cam, X, X + moves, float(np.sqrt(np.mean(np.sum(r ** 2, axis=1)))), cost
+    residual_mm = np.linalg.norm(r, axis=1) / px_per_m * 1e3
+    return c, cam, X, X + moves, float(np.sqrt(np.mean(np.sum(r ** 2, axis=1)))), cost, residual_mm
 
 
 def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic: Head | None = None,
               model: IdentityModel | None = None, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
               estimate_focal: bool = True, confidence: Mapping[str, float] | None = None,
-              point_sd_mm: float = POINT_SD_MM, where: str = "front photo") -> FrontFit:
+              point_sd_mm: float = POINT_SD_MM, drop_outliers: bool = False, where: str = "front photo") -> FrontFit:
     """Fit the identity model to the points marked on a front photo.
 
     Parameters
@@ -165,6 +173,10 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
         Per point in (0, 1]: weights (detected points carry them).
     point_sd_mm : float
         See :data:`POINT_SD_MM`.
+    drop_outliers : bool
+        Leave out, one at a time and the worst first, points the fit misses by more than
+        :data:`OUTLIER_SDS` spreads (weighted by their confidence), except the face's core
+        (eyes, nose, mouth, chin): for detected points nobody has checked.
 
     Returns
     -------
@@ -206,7 +218,20 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
         raise InputError("no camera explains the points marked on the front photo", where=where,
                          fix="check the points' labels (recon annotate)")
     best = min(fits, key=lambda k: fits[k][5])
-    c, cam, X, moved, rms, cost = fits[best]
+    dropped = {}
+    while drop_outliers:
+        # A detected point the fitted face misses by far more than its spread is a
+        # detection gone astray (a busy background, hair over the ear): pinning the head
+        # to it would dent the head, so the model's place for it is kept. Never the core.
+        res = fits[best][6]
+        free = [k for k, i in enumerate(ids) if not is_core(i)]
+        worst = max(free, key=lambda k: res[k] * np.sqrt(weights[k]), default=None)
+        if worst is None or res[worst] * np.sqrt(weights[worst]) <= OUTLIER_SDS * point_sd_mm or len(ids) <= 8:
+            break
+        dropped[ids[worst]] = round(float(res[worst]), 1)
+        ids, weights = ids[:worst] + ids[worst + 1:], np.delete(weights, worst)
+        fits[best] = _fit_one(front, ids, weights, generic, model, width, height, tries[best], point_sd_mm, where)
+    c, cam, X, moved, rms, cost, _ = fits[best]
     head = model.head(generic, c)
     pts = head.fp_positions()
     pos = {i: pts[i] for i in head.feature_points}
@@ -224,7 +249,7 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
     focal = tries[best]
     focal_from = "given" if best == "given" else ("orthographic" if focal is None else "estimated")
     return FrontFit(head, pos, source, c, cam, focal, focal_from, rms, cost,
-                    {key: round(v[5], 2) for key, v in fits.items()})
+                    {key: round(v[5], 2) for key, v in fits.items()}, dropped)
 
 
 def _scaled_camera(fitted, k: float):

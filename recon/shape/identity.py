@@ -8,7 +8,10 @@ the ICT FaceKit's first 50 modes on the generic head's vertices
 ``data/generic_head/identity_model.npz`` (2.3 MB; at most 0.05 mm from the full-precision
 mode per vertex and mode).
 
-:func:`recon.shape.from_front.fit_front` fits it to the points of a front photo.
+:func:`recon.shape.from_front.fit_front` fits it to the points of a front photo,
+:func:`fit_to_points` to 3D points (those the two-photo calibration gives): either way the
+DFFD then starts from the model's head, which is already near the person, instead of the
+generic head.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import numpy as np
 from mpeg4.errors import InputError
 from mpeg4.head import Head
 
-__all__ = ["IdentityModel", "build_identity_model", "write_identity_model", "load_identity_model",
+__all__ = ["IdentityModel", "fit_to_points", "build_identity_model", "write_identity_model", "load_identity_model",
            "identity_model_path"]
 
 
@@ -84,6 +87,44 @@ class IdentityModel:
             m = self.modes[b.part][:, list(b.vertices)]  # (K, k, 3)
             out[n] = np.einsum("kvj,v->jk", m, np.asarray(b.weights, dtype=np.float64))
         return out
+
+
+def fit_to_points(model: IdentityModel, head: Head, points, point_sd_mm: float = 2.0,
+                  rounds: int = 6) -> np.ndarray:
+    """Coefficients (K,) of the identity whose feature points best match 3D ``points``.
+
+    Maximum a posteriori: the squared distances of the head's feature points (after the
+    similarity that best aligns them, which the photos leave free) over ``point_sd_mm``
+    squared, plus the squared coefficients; alternating the similarity and the
+    coefficients' linear solution.
+
+    Parameters
+    ----------
+    model : IdentityModel
+    head : Head
+        The head the modes displace.
+    points : mapping of str to (3,) float
+        FP id → position, metres, any frame.
+    point_sd_mm : float
+        The points' expected spread about what the model can express, mm.
+    """
+    from .deform import fit_similarity
+
+    ids = [i for i in points if i in head.feature_points]
+    if len(ids) < 4:
+        raise InputError(f"only {len(ids)} feature points to fit the identity model to", where="identity model",
+                         fix="give at least 4, spread over the face")
+    X0 = np.array([head.fp_position(i) for i in ids])
+    Y = np.array([np.asarray(points[i], dtype=np.float64) for i in ids])
+    B = model.point_basis(head, ids).reshape(-1, model.n_modes)
+    w = 1.0 / (point_sd_mm * 1e-3) ** 2
+    H = w * B.T @ B + np.eye(model.n_modes)
+    c = np.zeros(model.n_modes)
+    for _ in range(rounds):
+        sim = fit_similarity(X0 + (B @ c).reshape(-1, 3), Y)
+        inside = (Y - sim.translation) @ sim.rotation / sim.scale  # the points in the head's frame
+        c = np.linalg.solve(H, w * B.T @ (inside - X0).reshape(-1))
+    return c
 
 
 def build_identity_model(deltas_cm: np.ndarray, generic: Head) -> IdentityModel:

@@ -298,6 +298,12 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     if front_only:
         from .skin_model import fit_skin_model, skin_model_layer
 
+        # Where the photo ends (a portrait cut at the neck), the sides' skin takes over:
+        # the photo's border row repeated would streak.
+        h, w = front_photo.shape[:2]
+        inside = cv2.warpAffine(np.ones((h, w), np.uint8), A[:2], (size, size), flags=cv2.INTER_NEAREST) > 0
+        masks[1] |= masks[0] & ~inside
+        masks[0] &= inside
         seen = cv2.warpAffine(head_masks["front"].astype(np.uint8), A[:2], (size, size), flags=cv2.INTER_NEAREST) > 0
         def row(ids):
             found = [i for i in ids if i in pts]

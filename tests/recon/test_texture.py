@@ -134,13 +134,16 @@ def test_reprojection_gives_the_photo_back(example, identities):
 def test_side_reprojection_gives_the_side_layer_back_and_weighs_the_cheek(example):
     import copy
 
+    from recon.texture import photo_background
+
     pair, result = example
     side = result.cameras["side"]
-    fid = side_reprojection(result.head, result.skin, pair.side, side, light=PHOTO)
+    # Compared where the photo shows the head: a rim of the rendered neck over the backdrop
+    # is the shape's error, not the texture's (the photos show no neck's end).
+    head_region = ~photo_background(pair.side)
+    fid = side_reprojection(result.head, result.skin, pair.side, side, head_region, light=PHOTO)
     # The skin the texture takes from the side photo comes back, relit with the photo's
-    # light, like the front region in the front photo: 28.6 dB on the example at 1024²
-    # (31.7 dB for the lit texture rendered unlit, which needs no light on the fitted
-    # head's normals). The cheek in front of the ear, which the texture takes from the front
+    # light, like the front region in the front photo: 31.4 dB on the example at 1024². The cheek in front of the ear, which the texture takes from the front
     # photo, seen there at a grazing angle, was 62 grey levels darker than the side photo in
     # the lit texture; de-lit and relit it is within a few (benchmarks/texture_fidelity.py;
     # tests/recon/test_delight.py holds it against the paint).
