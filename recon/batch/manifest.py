@@ -131,9 +131,10 @@ def _parse_row(raw: dict, line: int, folder: Path, manifest: str) -> ManifestRow
     if paths["texture_from"] and not paths["shape_from"]:
         raise InputError("texture_from is given without shape_from", where=where,
                          fix="give shape_from too (or put the annotations in the fdp column)")
-    if not (paths["fdp"] or paths["shape_from"]) and not (paths["front"] and paths["side"]):
+    if not (paths["fdp"] or paths["shape_from"]) and not paths["front"]:
         raise InputError("no photos and no annotations", where=where,
-                         fix="give front and side photos (and an fdp.json if the points are marked)")
+                         fix="give a front photo, and a side photo if there is one (and an fdp.json if the points "
+                             "are marked)")
     options = {}
     if cells.get("ipd") is not None:
         options["ipd_mm"] = _number(cells["ipd"], "ipd", where)

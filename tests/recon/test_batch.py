@@ -272,7 +272,7 @@ def test_manifest_csv_and_jsonl_read_the_same(tmp_path):
     ("id,front,side\n../up,a.jpg,b.jpg\n", "id '../up' cannot name a folder"),
     ("id,front,side,ipd\np1,a.jpg,b.jpg,sixty\n", "line 2 (p1): ipd is 'sixty', not a number"),
     ("id,front,side,texture_size\np1,a.jpg,b.jpg,12.5\n", "texture_size is '12.5', not a whole number"),
-    ("id,front\np1,a.jpg\n", "line 2 (p1): no photos and no annotations"),
+    ("id,side\np1,b.jpg\n", "line 2 (p1): no photos and no annotations"),
     ("id,fdp,shape_from\np1,a.fdp.json,b.fdp.json\n", "both fdp and shape_from"),
     ("id,front,side\n", "lists nobody"),
 ])
@@ -314,3 +314,19 @@ def test_a_failed_row_keeps_its_detected_points(people, tmp_path):
     assert record["status"] == "failed" and record["annotations"] == str(kept), record
     assert "recon annotate" in record["error"] and str(kept) in record["error"]
     assert read_fdp_json(kept).metadata["reviewed"] is False and not (tmp_path / parsed.id).exists()
+
+
+def test_a_row_without_a_side_photo_builds_from_the_front_alone(tmp_path):
+    from recon.example import EXAMPLE_DIR, EXAMPLE_FDP
+
+    fdp = read_fdp_json(EXAMPLE_FDP)
+    fdp.views = {"front": fdp.views["front"]}
+    manifest = tmp_path / "front.csv"
+    manifest.write_text(f"id,front\nalone,{EXAMPLE_DIR / 'front.jpg'}\n")
+    (row,) = read_manifest(manifest)
+    assert row.side is None
+    defaults = {"ipd_mm": 63.0, "focal_px": None, "method": "dffd", "texture_size": 256, "atlas": False}
+    record = build_person(row, str(tmp_path), defaults, detect=lambda front, side: fdp)
+    assert record["status"] == "done", record
+    meta = json.loads((tmp_path / "alone" / "head.fdp.json").read_text())["metadata"]
+    assert "estimated" in meta["fit"]["depth"]
