@@ -91,26 +91,13 @@ def shape_errors(data, generic, k: int, sigma: float, perspective: bool) -> dict
     return out
 
 
-MAKEHUMAN = ROOT.parent / "shared" / "data" / "foreign_heads" / "makehuman" / "base.obj"
-
-
 def makehuman_head():
-    """The MakeHuman hm08 head (body vertices above the shoulders, decimetres → metres),
-    marked by ``fmc mark``'s route (:func:`recon.mark.mark`)."""
-    import trimesh
-
-    from mpeg4.head import Head, Part
+    """The MakeHuman hm08 head (:mod:`recon.evaluate.makehuman`), marked by ``fmc mark``'s
+    route (:func:`recon.mark.mark`)."""
+    from recon.evaluate.makehuman import makehuman_head as raw_head
     from recon.mark import mark
 
-    m = trimesh.load(MAKEHUMAN, process=False, force="mesh", skip_materials=True)
-    v, f = np.asarray(m.vertices), np.asarray(m.faces)
-    keep = (np.arange(len(v)) < 13380) & (v[:, 1] > 6.3)  # the body group's head and neck
-    tri = f[keep[f].all(axis=1)]
-    ids = np.unique(tri)
-    remap = np.full(len(v), -1)
-    remap[ids] = np.arange(len(ids))
-    raw = Head({"skin": Part("skin", v[ids] * 0.1, remap[tri])}, {}, {}, metadata={"units": "m"})
-    return mark(raw, unit="m", up="+y", forward="+z", where="MakeHuman hm08 head").head
+    return mark(raw_head(), where="MakeHuman hm08 head").head
 
 
 def makehuman_errors(generic, target) -> dict[str, np.ndarray]:
@@ -189,7 +176,9 @@ def main(argv=None) -> int:
         e = np.stack(results[("ortho", args.noise[0], name)])
         print(f"{name}_face_median_mm: {np.median(e[:, FACE]):.2f}")
         print(f"{name}_narrow_face_median_mm: {np.median(e[:, NARROW]):.2f}")
-    if MAKEHUMAN.exists() and not args.no_makehuman:
+    from recon.evaluate.makehuman import MAKEHUMAN_DIR
+
+    if (MAKEHUMAN_DIR / "base.obj").exists() and not args.no_makehuman:
         try:
             target = makehuman_head()
         except Exception as e:  # no detector here, or the marking failed: say so, go on

@@ -426,9 +426,10 @@ def place_mesh(head: Head, frame: np.ndarray | None = None, parts: dict[str, Par
     Returns
     -------
     Head
-        A new head without feature points, morph targets or animation tables.
+        A new head without feature points or animation tables; its morph targets are the
+        mesh's, turned and scaled with it and regrouped with its parts (a source head keeps
+        the motion its file carries).
     """
-    from ..head import Part
 
     parts = parts or {}
     m = np.eye(4) if frame is None else np.asarray(frame, dtype=np.float64)
@@ -438,7 +439,8 @@ def place_mesh(head: Head, frame: np.ndarray | None = None, parts: dict[str, Par
         return v @ m[:3, :3].T + m[:3, 3]
 
     taken: dict[str, np.ndarray] = {}
-    out: dict[str, Part] = {}
+    out: dict = {}
+    pieces: dict[str, list] = {}  # file part → (head part, its vertex ids in the file part)
     for name, s in parts.items():
         place = f"{where}, parts.{name}"
         if s.source not in head.parts:
@@ -455,6 +457,7 @@ def place_mesh(head: Head, frame: np.ndarray | None = None, parts: dict[str, Par
                              fix="give each vertex to one part")
         mask[ids] = True
         out[name] = _sub_part(src, name, ids, moved, s.centre, place)
+        pieces.setdefault(s.source, []).append((name, ids))
     for name, src in head.parts.items():
         mask = taken.get(name)
         if mask is not None and mask.all():
@@ -465,7 +468,27 @@ def place_mesh(head: Head, frame: np.ndarray | None = None, parts: dict[str, Par
             new, k = f"{name}_{k}", k + 1
         centre = None if src.centre is None or mask is not None else moved(src.centre[None])[0]
         out[new] = _sub_part(src, new, ids, moved, centre, f"{where}, part '{name}'")
-    return Head(out, metadata=dict(head.metadata))
+        pieces.setdefault(name, []).append((new, ids))
+    return Head(out, morph_targets=_regrouped_targets(head, pieces, m[:3, :3]), metadata=dict(head.metadata))
+
+
+def _regrouped_targets(head: Head, pieces: dict, linear: np.ndarray) -> dict:
+    """The head's morph targets on the regrouped parts, their vectors turned and scaled."""
+    from ..head import SparseDisplacement
+
+    targets = {}
+    for tname, target in head.morph_targets.items():
+        moved = {}
+        for source, d in target.items():
+            n = head.parts[source].n_vertices
+            for part, ids in pieces.get(source, ()):
+                slot = np.full(n, -1, dtype=np.int64)
+                slot[ids] = np.arange(len(ids))
+                keep = slot[d.indices] >= 0
+                if keep.any():
+                    moved[part] = SparseDisplacement(slot[d.indices[keep]], d.vectors[keep] @ linear.T)
+        targets[tname] = moved
+    return targets
 
 
 def _sub_part(src, name: str, ids: np.ndarray, moved, centre, where: str):

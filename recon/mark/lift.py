@@ -182,6 +182,41 @@ def _rays(camera, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return origins, np.tile(-camera.rotation[2], (len(pixels), 1))
 
 
+#: Points on the rims of the face's openings (the inner lip contour, the eyelids and eye
+#: corners): from the front their rays may run through the opening (parted lips, a mesh
+#: without eyeballs) into the head.
+RIM_POINTS = ("2.2", "2.3", "2.4", "2.5", "2.6", "2.7", "2.8", "2.9", "3.1", "3.2", "3.3", "3.4", "3.7", "3.8",
+              "3.9", "3.10", "3.11", "3.12")
+
+
+_OPENING_PROBE = 0.003  # metres above and below a rim point where the surface is looked for
+_OPENING_DEPTH = 0.008  # a hit this far behind the surface above and below went through an opening
+
+
+def _through_openings(surface, camera, rays: dict) -> dict[str, float]:
+    """The rim points whose front ray ran through an opening (its hit lies well behind the
+    surface just above and below it, or it hit nothing), each with the depth along its ray
+    of that surface."""
+    if not rays:
+        return {}
+    ids = list(rays)
+    up = camera.rotation[1]
+    out = {}
+    near = []
+    for sign in (1.0, -1.0):
+        o = np.array([rays[i][2] for i in ids]) + sign * _OPENING_PROBE * up
+        d = np.array([rays[i][3] for i in ids])
+        tri, loc = surface.cast(o, d, radius=0.0)
+        near.append(np.where(tri >= 0, np.einsum("ij,ij->i", loc - o, d), np.inf))
+    front_depth = np.minimum(*near)
+    for k, i in enumerate(ids):
+        tri, p, o, d = rays[i]
+        depth = np.inf if tri < 0 else float((p - o) @ d)
+        if np.isfinite(front_depth[k]) and depth > front_depth[k] + _OPENING_DEPTH:
+            out[i] = float(front_depth[k])
+    return out
+
+
 def lift(head: Head, views: Views, found: FdpFile, surface: _Surface | None = None) -> dict[str, Hit]:
     """3D feature points on the surface from points found in the two renders.
 
@@ -216,11 +251,10 @@ def lift(head: Head, views: Views, found: FdpFile, surface: _Surface | None = No
         v = found.views.get(view)
         return 1.0 if v is None else float(v.confidence.get(i, 1.0))
 
-    def cast(view, ids):
+    def cast(view, ids, radius):
         px = np.array([(fpx if view == "front" else spx)[i] for i in ids]).reshape(-1, 2)
         o, d = _rays(views.cameras[view], px)
-        # The side view sees the ears edge-on: a ray that grazes a rim takes the rim.
-        tri, loc = surface.cast(o, d, radius=0.0015 if view == "side" else 0.0)
+        tri, loc = surface.cast(o, d, radius=radius)
         return {i: (t, p, o[k], d[k]) for k, (i, t, p) in enumerate(zip(ids, tri, loc))}
 
     out: dict[str, Hit] = {}
@@ -236,7 +270,16 @@ def lift(head: Head, views: Views, found: FdpFile, surface: _Surface | None = No
             out[i] = surface.hit(tri[k], snapped[k], conf("side", i) * np.exp(-(gap / 0.003) ** 2), "profile")
     front_ids = [i for i in fpx if i not in out and FEATURE_POINTS[i].front != "N"
                  and not (FEATURE_POINTS[i].front == "~" and FEATURE_POINTS[i].side_view == "Y")]
-    for i, (tri, p, o, d) in cast("front", front_ids).items():
+    rays = cast("front", front_ids, 0.0)
+    # A rim point whose ray ran through its opening is the rim: the surface nearest the ray
+    # at the depth of the surface around it.
+    through = _through_openings(surface, views.cameras["front"], {i: rays[i] for i in front_ids if i in RIM_POINTS})
+    if through:
+        ids = list(through)
+        at = np.array([rays[i][2] + through[i] * rays[i][3] for i in ids])
+        tris, pts = surface.closest(at)
+        rays.update({i: (tris[k], pts[k], rays[i][2], rays[i][3]) for k, i in enumerate(ids)})
+    for i, (tri, p, o, d) in rays.items():
         if tri < 0:
             continue
         c = conf("front", i)
@@ -248,7 +291,8 @@ def lift(head: Head, views: Views, found: FdpFile, surface: _Surface | None = No
             c *= float(np.exp(-(gap_px / cam.scale_px / 0.005) ** 2))
         out[i] = surface.hit(tri, p, c, "front ray")
     side_ids = [i for i in spx if i not in out and FEATURE_POINTS[i].side in ("C", "L")]
-    for i, (tri, p, o, d) in cast("side", side_ids).items():
+    # The side view sees the ears edge-on: a ray that grazes a rim takes the rim.
+    for i, (tri, p, o, d) in cast("side", side_ids, 0.0015).items():
         if tri >= 0:
             out[i] = surface.hit(tri, p, conf("side", i), "side ray")
     # A pupil on a separate eyeball: the front of the cornea (an untextured eye shows no

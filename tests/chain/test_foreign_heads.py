@@ -27,3 +27,47 @@ def test_speech_on_the_mediapipe_mask_keeps_its_values_bounded(tmp_path):
     stream = read_fap(paths["stream"])
     lips = stream.values[:, [f - 1 for f in (4, 5, 8, 9, 10, 11, 16, 17)]]
     assert np.isfinite(lips).all() and np.abs(lips).max() <= CLOSING_LIMIT
+
+
+def test_makehuman_is_marked_and_its_own_targets_clone_onto_the_generic_head(tmp_path):
+    """The MakeHuman head (parted lips, no eyeballs in the body mesh) marked without flags:
+    the inner lip and eyelid rays that run through the openings take the rims, not the
+    inside of the head (inner lips were 9 cm deep and the fit dragged the mouth up to the
+    nose); the marked file keeps its morph targets as a source; its jaw drop and smile
+    cloned onto the generic head open and widen the mouth."""
+    from recon.evaluate.makehuman import MAKEHUMAN_DIR, makehuman_head
+
+    if not (MAKEHUMAN_DIR / "base.obj").exists():
+        pytest.skip(f"the MakeHuman head is not there ({MAKEHUMAN_DIR})")
+    pytest.importorskip("mediapipe")
+    from fmc.clone.cloning import clone_targets
+    from mpeg4.generic_head import load_generic_head
+    from mpeg4.io import load_head, save_head
+    from recon.mark import mark_file
+
+    raw = makehuman_head(targets={"jaw_drop": "targets/03_Lip_Parting_and_Jaw_Opening/26.target",
+                                  "smile": "targets/02_Lower_Face_AUs/12.target"})
+    save_head(raw, tmp_path / "mh.glb")
+    mark_file(tmp_path / "mh.glb")
+    head = load_head(tmp_path / "mh.glb")
+    assert set(head.morph_targets) == {"jaw_drop", "smile"}
+    p = head.fp_positions()
+    es0 = np.linalg.norm(p["3.5"] - p["3.6"])
+    assert head.fapu.MNS0 > 0
+    for inner, outer in (("2.2", "8.1"), ("2.3", "8.2"), ("3.1", "3.9"), ("3.2", "3.10")):
+        # On the lips' and lids' rims: as deep as their neighbours, within a fifth of ES0.
+        assert abs(p[inner][2] - p[outer][2]) < 0.2 * es0, (inner, p[inner], outer, p[outer])
+    assert p["8.1"][1] < p["9.15"][1] < p["3.5"][1]  # mouth below nose below eyes
+
+    generic = load_generic_head()
+    cloned = clone_targets(head, generic)
+    rest = generic.fp_positions()
+    moved = generic.copy()
+    moved.morph_targets = cloned
+    jaw = moved.with_vertices(moved.morphed({"jaw_drop": 1.0})).fp_positions()
+    smile = moved.with_vertices(moved.morphed({"smile": 1.0})).fp_positions()
+    gap = lambda q: np.linalg.norm(q["2.2"] - q["2.3"])  # noqa: E731
+    assert gap(jaw) - gap(rest) > 0.01  # the mouth opens by over a centimetre
+    assert rest["2.1"][1] - jaw["2.1"][1] > 0.005  # the chin goes down
+    width = lambda q: np.linalg.norm(q["8.3"] - q["8.4"])  # noqa: E731
+    assert width(smile) - width(rest) > 0.003  # the smile widens the mouth

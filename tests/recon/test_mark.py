@@ -15,7 +15,7 @@ from typer.testing import CliRunner
 from mpeg4.errors import InputError
 from mpeg4.io import load_head, read_fdp_json
 from mpeg4.io.fdp_json import PartSource, place_mesh
-from mpeg4.head import Head, Part
+from mpeg4.head import Head, Part, SparseDisplacement
 
 pytest.importorskip("fast_simplification", reason="fast-simplification is not installed (pip install '.[test]')")
 
@@ -145,7 +145,13 @@ def test_place_mesh_regroups_and_moves(tmp_path):
     b.vertices += [3.0, 0, 0]
     v = np.concatenate([a.vertices, b.vertices])
     t = np.concatenate([a.faces, b.faces + len(a.vertices)])
-    head = Head({"Body": Part("Body", v, t), "Hair": Part("Hair", a.vertices, a.faces)})
+    # A morph target across both pieces of Body and the Hair: it follows the regrouping.
+    rng = np.random.default_rng(0)
+    moving = np.array([0, 5, len(a.vertices) + 2, len(v) - 1])
+    vec = rng.normal(size=(4, 3))
+    head = Head({"Body": Part("Body", v, t), "Hair": Part("Hair", a.vertices, a.faces)},
+                morph_targets={"smile": {"Body": SparseDisplacement(moving, vec),
+                                         "Hair": SparseDisplacement([1], [[0.0, 0.0, 1.0]])}})
     m = np.eye(4)
     m[:3, :3] = 0.01 * np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]])  # cm, z up -> m, y up
     m[:3, 3] = [0.1, 0.2, 0.3]
@@ -155,6 +161,13 @@ def test_place_mesh_regroups_and_moves(tmp_path):
     assert list(out.parts) == ["skin", "eye_l", "Hair"]
     assert np.allclose(out.parts["eye_l"].vertices, v[ids] @ m[:3, :3].T + m[:3, 3])
     assert len(out.parts["eye_l"].triangles) == len(b.faces) and out.parts["eye_l"].centre[0] == 0.13
+    smile = out.morph_targets["smile"]  # turned and scaled with the mesh, on the new parts
+    assert set(smile) == {"skin", "eye_l", "Hair"}
+    np.testing.assert_array_equal(smile["skin"].indices, [0, 5])
+    np.testing.assert_allclose(smile["skin"].vectors, vec[:2] @ m[:3, :3].T)
+    np.testing.assert_array_equal(smile["eye_l"].indices, [2, len(b.vertices) - 1])
+    np.testing.assert_allclose(smile["eye_l"].vectors, vec[2:] @ m[:3, :3].T)
+    np.testing.assert_allclose(smile["Hair"].vectors, [[0.0, 0.01, 0.0]], atol=1e-15)
     with pytest.raises(InputError, match="join the listed vertices"):
         place_mesh(head, None, {"eye_l": PartSource("Body", ids[:-3])})
     with pytest.raises(InputError, match="not a rotation"):

@@ -1,0 +1,60 @@
+"""The MakeHuman hm08 head from the shared test data, with its artist-made targets.
+
+``../shared/data/foreign_heads/makehuman/base.obj`` is a whole body in decimetres (+y up,
++z forward, +x the figure's left); its first 13 380 vertices are the body, the rest helper
+geometry. The head is the body's vertices above the shoulders (y > 6.3 dm), in metres. Its
+``.target`` files (FACSHuman action units and emotions, HBC visemes: ``vertex dx dy dz``
+lines, indices into ``base.obj``) become morph targets of that head.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from mpeg4.errors import InputError
+from mpeg4.head import Head, Part, SparseDisplacement
+
+__all__ = ["MAKEHUMAN_DIR", "makehuman_head", "read_target"]
+
+#: The shared MakeHuman folder beside the project.
+MAKEHUMAN_DIR = Path(__file__).resolve().parents[3] / "shared" / "data" / "foreign_heads" / "makehuman"
+
+_BODY = 13380  # vertices of the body group; the rest are helpers
+_NECK_DM = 6.3  # the head is the body above this height, decimetres
+
+
+def read_target(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """A MakeHuman ``.target``: (k,) vertex indices into ``base.obj`` and (k, 3) decimetres."""
+    rows = np.loadtxt(path, ndmin=2, comments="#")
+    if rows.size == 0:
+        return np.zeros(0, np.int64), np.zeros((0, 3))
+    if rows.shape[1] != 4:
+        raise InputError(f"a target line has {rows.shape[1]} numbers, not 4 (vertex dx dy dz)", where=os.fspath(path))
+    return rows[:, 0].astype(np.int64), rows[:, 1:4]
+
+
+def makehuman_head(folder: str | os.PathLike = MAKEHUMAN_DIR, targets: Mapping[str, str] | None = None) -> Head:
+    """The hm08 head, metres, one part ``skin`` (no feature points), with ``targets``
+    (name → path under ``folder``) as morph targets."""
+    import trimesh
+
+    folder = Path(folder)
+    # maintain_order: the targets index the file's own vertex list, which UVs would split.
+    mesh = trimesh.load(folder / "base.obj", process=False, force="mesh", skip_materials=True, maintain_order=True)
+    v, f = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces)
+    keep = (np.arange(len(v)) < _BODY) & (v[:, 1] > _NECK_DM)
+    tri = f[keep[f].all(axis=1)]
+    ids = np.unique(tri)
+    slot = np.full(len(v), -1, dtype=np.int64)
+    slot[ids] = np.arange(len(ids))
+    morph = {}
+    for name, rel in (targets or {}).items():
+        idx, d = read_target(folder / rel)
+        on = slot[idx] >= 0
+        morph[name] = {"skin": SparseDisplacement(slot[idx[on]], d[on] * 0.1)}
+    return Head({"skin": Part("skin", v[ids] * 0.1, slot[tri])}, morph_targets=morph,
+                metadata={"units": "m", "name": "MakeHuman hm08 head"})
