@@ -96,7 +96,8 @@ def fit_to_points(model: IdentityModel, head: Head, points, point_sd_mm: float =
     Maximum a posteriori: the squared distances of the head's feature points (after the
     similarity that best aligns them, which the photos leave free) over ``point_sd_mm``
     squared, plus the squared coefficients; alternating the similarity and the
-    coefficients' linear solution.
+    coefficients' linear solution. A point far off (a detection gone astray) weighs less
+    each round (Cauchy weights at three spreads), so it cannot bend the whole head.
 
     Parameters
     ----------
@@ -117,13 +118,16 @@ def fit_to_points(model: IdentityModel, head: Head, points, point_sd_mm: float =
     X0 = np.array([head.fp_position(i) for i in ids])
     Y = np.array([np.asarray(points[i], dtype=np.float64) for i in ids])
     B = model.point_basis(head, ids).reshape(-1, model.n_modes)
-    w = 1.0 / (point_sd_mm * 1e-3) ** 2
-    H = w * B.T @ B + np.eye(model.n_modes)
+    sd = point_sd_mm * 1e-3
     c = np.zeros(model.n_modes)
+    w = np.ones(len(ids))
     for _ in range(rounds):
-        sim = fit_similarity(X0 + (B @ c).reshape(-1, 3), Y)
+        sim = fit_similarity(X0 + (B @ c).reshape(-1, 3), Y, w)
         inside = (Y - sim.translation) @ sim.rotation / sim.scale  # the points in the head's frame
-        c = np.linalg.solve(H, w * B.T @ (inside - X0).reshape(-1))
+        wk = np.repeat(w, 3) / sd ** 2
+        c = np.linalg.solve((B * wk[:, None]).T @ B + np.eye(model.n_modes), B.T @ (wk * (inside - X0).reshape(-1)))
+        miss = np.linalg.norm(inside - X0 - (B @ c).reshape(-1, 3), axis=1)
+        w = 1.0 / (1.0 + (miss / (3 * sd)) ** 2)
     return c
 
 
