@@ -131,27 +131,33 @@ def measure(name, front, side, other, out: Path, rec: Recogniser, texture_size: 
         measure_view(fig, pics, head, res.cameras[view].camera, images[view], found.views[view].points, view,
                      facing, rec)
     if other is not None:
-        from recon.landmarks import detect
-        from recon.photos import photos_focal_px
-        from recon.texture.cameras import fit_camera
-
         try:
-            seen = detect(front, other)
+            img, pts, cam, facing_o = unseen_view(head, front, other)
         except InputError as e:
             fig["heldout_error"] = str(e)
         else:
-            img = read_photo(other)
-            pts = seen.views["side"].points
-            focal, _ = photos_focal_px(front, other)
-            cam = fit_camera(head.fp_positions(), pts, img.shape[1], img.shape[0], focal_px=focal,
-                             where=str(other)).camera
             mask, _ = rp.rendered_mask(head, cam)
             region = rp.head_region(img)
-            facing_o = seen.metadata["landmarks"]["side_facing"]["facing"]
             fig["heldout_profile_line_ipd_pct"] = rp.profile_line(region, mask, pts, facing_o, rp.ipd_px(head, cam))
             fig["heldout_silhouette_iou"] = rp.silhouette_iou(region, mask, pts.get("2.1", [0, img.shape[0]])[1])
             pics["held-out"] = (img, render_lit(head, cam), mask)
     return fig, pics
+
+
+def unseen_view(head, front, side) -> tuple:
+    """A profile photo the build never saw: (image, points detected there, the camera fitted
+    to them and the head, which way it faces). The focal length is the pair's EXIF, as a
+    two-photo build would take it."""
+    from recon.landmarks import detect
+    from recon.photos import photos_focal_px, read_photo
+    from recon.texture.cameras import fit_camera
+
+    seen = detect(front, side)
+    img = read_photo(side)
+    pts = seen.views["side"].points
+    focal, _ = photos_focal_px(front, side)
+    cam = fit_camera(head.fp_positions(), pts, img.shape[1], img.shape[0], focal_px=focal, where=str(side)).camera
+    return img, pts, cam, seen.metadata["landmarks"]["side_facing"]["facing"]
 
 
 def measure_view(fig: dict, pics: dict, head, cam, image: np.ndarray, pts: dict, view: str, facing: str,
@@ -208,22 +214,11 @@ def measure_front_only(name, front, side, out: Path, rec: Recogniser, texture_si
     found = read_fdp_json(out / "annotations.fdp.json")
     measure_view(fig, pics, head, cam, read_photo(front), found.views["front"].points, "front", "left", rec)
     if side is not None:
-        from recon.landmarks import detect
-        from recon.texture.cameras import fit_camera
-
         try:
-            seen = detect(front, side)
+            img, pts, unseen, facing = unseen_view(head, front, side)
         except InputError as e:
             fig["side_error"] = str(e)
         else:
-            img = read_photo(side)
-            pts = seen.views["side"].points
-            from recon.photos import photos_focal_px
-
-            focal, _ = photos_focal_px(front, side)  # as the two-photo build would take it
-            unseen = fit_camera(head.fp_positions(), pts, img.shape[1], img.shape[0], focal_px=focal,
-                                where=str(side)).camera
-            facing = seen.metadata["landmarks"]["side_facing"]["facing"]
             measure_view(fig, pics, head, unseen, img, pts, "side", facing, rec)
     return fig, pics
 
@@ -358,7 +353,8 @@ def front_only(todo, args, rec: Recogniser, two_photo: dict) -> None:
     alone = [results[n] for n, _, s in runs if s is None]
     print(f"front_only_built: {sum(f['built'] for f in results.values())} of {len(results)}")
     for key in ("profile_line_ipd_pct", "silhouette_iou_side"):
-        print(f"front_only_{key}: {median(pairs, key):.3f} (two photos: {median(two_photo.values(), key):.3f})")
+        same = [f for n, f in two_photo.items() if "+" not in n]  # the same pairs, their own profiles
+        print(f"front_only_{key}: {median(pairs, key):.3f} (two photos: {median(same, key):.3f})")
     for key in ("identity_distance", "skin_delta_e", "silhouette_iou_front", "point_agreement_front_ipd_pct"):
         print(f"front_only_portraits_{key}: {median(alone, key):.3f}")
     print(f"front_only_seconds: {median(list(results.values()), 'seconds'):.1f}")
