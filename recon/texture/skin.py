@@ -296,30 +296,54 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     t3 = time.perf_counter()
     masks = _layer_masks(A, polygon, pts, front, size, seen_sign)
     if front_only:
-        from .skin_model import fit_skin_model, skin_model_layer
-
-        # Where the photo ends (a portrait cut at the neck), the sides' skin takes over:
-        # the photo's border row repeated would streak.
-        h, w = front_photo.shape[:2]
-        inside = cv2.warpAffine(np.ones((h, w), np.uint8), A[:2], (size, size), flags=cv2.INTER_NEAREST) > 0
-        masks[1] |= masks[0] & ~inside
-        masks[0] &= inside
-        seen = cv2.warpAffine(head_masks["front"].astype(np.uint8), A[:2], (size, size), flags=cv2.INTER_NEAREST) > 0
-        def row(ids):
-            found = [i for i in ids if i in pts]
-            if not found:
-                return None
-            px = front.project(np.array([pts[i] for i in found]))
-            return float(np.mean(px[:, 1]) * A[1, 1] + A[1, 2])
-
-        model = fit_skin_model(layers[0], masks[0], seen, hair_row=row(("10.9", "10.10")), chin_row=row(("2.1",)))
-        layer = skin_model_layer(model)
-        layers += [layer, layer]
+        layers += _skin_model_layers(layers[0], masks, front_photo, head_masks["front"], front, pts, A)
     texture = blend_multiband(layers, masks, levels=levels, method=blend)
     texture[size - patch:, :patch] = _HIDDEN_RGB
     times["blend"] = time.perf_counter() - t3
     times["total"] = time.perf_counter() - t0
     return SkinTexture(texture, uv, source, tris, tregion, region, cams, layers, masks, times, seen_sign, lighting)
+
+
+def _skin_model_layers(front_layer, masks, photo, head_mask, front: FittedCamera, pts, A) -> list[np.ndarray]:
+    """The two side layers of a texture from a front photo alone, painted by the skin model
+    (:mod:`recon.texture.skin_model`); ``masks`` change in place: what the photo does not
+    show of the person (past its edge, the backdrop beside an overhanging skull) goes to
+    the skin model too."""
+    from .skin_model import fit_skin_model, skin_model_layer
+
+    size = front_layer.shape[0]
+    h, w = photo.shape[:2]
+    inside = cv2.warpAffine(np.ones((h, w), np.uint8), A[:2], (size, size), flags=cv2.INTER_NEAREST) > 0
+    seen = cv2.warpAffine(_person(photo, head_mask).astype(np.uint8), A[:2], (size, size),
+                          flags=cv2.INTER_NEAREST) > 0
+    # The photo's border row repeated would streak; the wall is not skin.
+    shown = inside & seen
+    masks[1] |= masks[0] & ~shown
+    masks[0] &= shown
+
+    def row(ids):
+        found = [i for i in ids if i in pts]
+        if not found:
+            return None
+        px = front.project(np.array([pts[i] for i in found]))
+        return float(np.mean(px[:, 1]) * A[1, 1] + A[1, 2])
+
+    model = fit_skin_model(front_layer, masks[0], seen, hair_row=row(("10.9", "10.10")), chin_row=row(("2.1",)))
+    layer = skin_model_layer(model)
+    return [layer, layer]
+
+
+def _person(photo: np.ndarray, head_mask: np.ndarray) -> np.ndarray:
+    """Where the photo shows the head: the rendered head less the backdrop, and, where the
+    selfie segmentation can run, only the person (a busy wall beside a head the fitted
+    skull overhangs is not hair)."""
+    from recon.landmarks.models import mediapipe_available
+
+    if not mediapipe_available():
+        return head_mask
+    from recon.landmarks.models import person_mask
+
+    return head_mask & (person_mask(photo) > 0.5)
 
 
 def _layer_masks(A: np.ndarray, polygon: np.ndarray, pts, front: FittedCamera, size: int,
