@@ -1,0 +1,178 @@
+"""Foreign heads marked, cloned and played: what a user's own mesh gets.
+
+For each head of ``../shared/data/foreign_heads`` (the MakeHuman hm08 head with two of its
+targets, the MediaPipe face mask) and each mesh file given, as ``fmc clone`` takes it:
+
+- ``mark_s``: marking it (:func:`chain.clone.target_head`: :func:`recon.mark.mark` when it
+  has no points), ``points``: feature points placed, ``parts``: the parts it was given,
+  ``fapu_ok``: whether its FAPU can be measured (1) or the points are unreliable (0);
+- ``clone_s``: cloning the generic head's tables onto it (:func:`fmc.clone.clone`);
+- over the cloned tables, each low-level FAP alone at ±512 and every Xface stream
+  (``../shared/data/fap_streams/xface``), played as every player reads it:
+  ``inverted_triangles_max`` (target 0), ``edge_stretch_max`` (≤ 2.5),
+  ``eyeball_centre_shift_max_mm`` (≤ 0.2), and ``fapu_conformance_pct``: the share of
+  low-level FAPs whose feature point moves value × FAPU within 5 % at ±512;
+- ``lip_gap_pbm_mm``: the inner lips' gap (2.2 to 2.3) at the p/b/m viseme (≤ 1);
+
+then MakeHuman as a source: its jaw drop (AU 26), smile (AU 12), happy and B/M/P viseme
+targets cloned onto the generic head, with the inverted triangles and edge stretch of each
+at full weight.
+
+No hand-checked point table ships yet, so no marking error is printed.
+
+Run: ``python3 benchmarks/foreign_heads.py [MESH ...] [--no-streams]``
+Prints ``head.name: value`` lines.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+FOREIGN = ROOT.parent / "shared" / "data" / "foreign_heads"
+XFACE = ROOT.parent / "shared" / "data" / "fap_streams" / "xface"
+MASK = FOREIGN / "mediapipe_canonical_face" / "canonical_face_model.obj"
+MAKEHUMAN_TARGETS = {"jaw_drop": "targets/03_Lip_Parting_and_Jaw_Opening/26.target",
+                     "smile": "targets/02_Lower_Face_AUs/12.target",
+                     "happy": "targets/00_Emotions/06_Happy.target",
+                     "viseme_B": "hbc_visemes/B.target"}
+
+
+def low_level_checks(head, player, checks) -> dict[str, float]:
+    """Each low-level FAP the head has a table for, alone at ±512."""
+    from fmc.conformance import HEAD_TURN_FAPS, eyeball_centre_shift, fp_conformance
+
+    inverted = 0
+    stretch = shift = 0.0
+    ok = total = 0
+    for (n, _), _table in sorted(head.fat.items(), key=lambda kv: str(kv[0])):
+        if not isinstance(n, int) or n < 3 or n in HEAD_TURN_FAPS:
+            continue
+        for value in (512.0, -512.0):
+            parts = player.part_vertices(player.vertices({n: value}))
+            inverted = max(inverted, checks.inverted(parts["skin"]))
+            stretch = max(stretch, checks.stretch(parts["skin"]))
+            shift = max(shift, eyeball_centre_shift(head, parts))
+            a, b = fp_conformance(head, {n: value}, rel_tol=0.05, moved=parts)
+            ok, total = ok + a, total + b
+    return {"inverted_triangles_max": inverted, "edge_stretch_max": stretch,
+            "eyeball_centre_shift_max_mm": 1e3 * shift,
+            "fapu_conformance_pct": 100.0 * ok / total if total else float("nan")}
+
+
+def lip_gap_pbm(head, player) -> float:
+    """The inner lips' gap (mm) at the p/b/m viseme, full intensity."""
+    parts = player.part_vertices(player.vertices({(1, 1): 63.0}))
+    return 1e3 * float(np.linalg.norm(head.fp_position("2.2", parts) - head.fp_position("2.3", parts)))
+
+
+def measure(name: str, path: Path, streams: list[Path]) -> dict[str, float]:
+    from chain.clone import target_head
+    from fap_conformance import play_file
+    from fmc.clone import clone
+    from fmc.conformance import SurfaceChecks
+    from fmc.heads import animated_head
+    from fmc.play import Player
+    from mpeg4.errors import InputError
+    from mpeg4.io.fap import read_fap
+
+    out: dict[str, float] = {}
+    t = time.perf_counter()
+    target, warnings = target_head(path)
+    out["mark_s"] = time.perf_counter() - t
+    out["points"] = len(target.feature_points)
+    print(f"{name}.parts: {', '.join(target.parts)}")
+    try:
+        target.fapu
+        out["fapu_ok"] = 1
+    except InputError as e:
+        out["fapu_ok"] = 0
+        print(f"{name}.unreliable: {e}")
+        return out
+    t = time.perf_counter()
+    head, _ = clone(animated_head(None), target)
+    out["clone_s"] = time.perf_counter() - t
+    player, checks = Player(head), SurfaceChecks(head)
+    out.update(low_level_checks(head, player, checks))
+    for stream in streams:
+        res = play_file(head, player, checks, read_fap(stream, lenient=True))
+        for k in ("inverted_triangles_max", "edge_stretch_max", "eyeball_centre_shift_max_mm"):
+            if math.isfinite(res[k]):
+                out[k] = max(out[k], res[k])
+    out["lip_gap_pbm_mm"] = lip_gap_pbm(head, player)
+    return out
+
+
+def makehuman_as_source(glb: Path) -> dict[str, float]:
+    """MakeHuman's own targets cloned onto the generic head: each at full weight."""
+    from fmc.clone.cloning import clone_targets
+    from fmc.conformance import SurfaceChecks
+    from mpeg4.generic_head import load_generic_head
+    from mpeg4.io import load_head
+
+    source = load_head(glb)
+    generic = load_generic_head()
+    t = time.perf_counter()
+    cloned = clone_targets(source, generic)
+    out = {"clone_s": time.perf_counter() - t}
+    moved = generic.copy()
+    moved.morph_targets = cloned
+    checks = SurfaceChecks(generic)
+    for name in cloned:
+        skin = moved.morphed({name: 1.0})["skin"]
+        out[f"{name}.inverted_triangles"] = checks.inverted(skin)
+        out[f"{name}.edge_stretch"] = checks.stretch(skin)
+    return out
+
+
+def _fmt(v) -> str:
+    return str(v) if isinstance(v, (int, np.integer)) else f"{v:.2f}"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("meshes", nargs="*", type=Path, help="more head meshes (GLB, glTF, OBJ, PLY)")
+    ap.add_argument("--no-streams", action="store_true", help="skip the Xface streams")
+    args = ap.parse_args(argv)
+    from mpeg4.io import save_head
+    from recon.evaluate.makehuman import MAKEHUMAN_DIR, makehuman_head
+
+    streams = [] if args.no_streams or not XFACE.is_dir() else sorted(XFACE.glob("*.fap"))
+    tmp = Path(tempfile.mkdtemp(prefix="foreign_heads_"))
+    heads: dict[str, Path] = {}
+    makehuman = None
+    if (MAKEHUMAN_DIR / "base.obj").exists():
+        makehuman = tmp / "makehuman.glb"
+        save_head(makehuman_head(targets=MAKEHUMAN_TARGETS), makehuman)
+        heads["makehuman"] = makehuman
+    if MASK.exists():
+        heads["mediapipe_mask"] = MASK
+    for p in args.meshes:
+        heads[p.stem] = p
+    if not heads:
+        print(f"no heads: {FOREIGN} is absent and no mesh was given", file=sys.stderr)
+        return 2
+    for name, path in heads.items():
+        for k, v in measure(name, path, streams).items():
+            print(f"{name}.{k}: {_fmt(v)}", flush=True)
+    if makehuman is not None:
+        from recon.mark import mark_file
+
+        mark_file(makehuman)  # the source needs its points beside it
+        for k, v in makehuman_as_source(makehuman).items():
+            print(f"makehuman_source.{k}: {_fmt(v)}", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
