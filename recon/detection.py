@@ -90,6 +90,8 @@ def detect_annotations(front: str | os.PathLike, side: str | os.PathLike | None,
 
 def correction_hint(front, side, fdp_path) -> str:
     """How to correct detected points and build again."""
-    photos = f"{front} {side}" if side is not None else f"{front}"
-    return (f"check and correct them with: recon annotate {photos} --fdp {fdp_path}, then build again with "
+    if side is None:  # the page shows two photos: a front photo alone is corrected in the file
+        return (f"check them in {fdp_path} (pixels per point on the front photo; the annotation page needs a side "
+                f"photo too: recon annotate {front} SIDE --fdp {fdp_path}), then build again with --fdp {fdp_path}")
+    return (f"check and correct them with: recon annotate {front} {side} --fdp {fdp_path}, then build again with "
             f"--fdp {fdp_path}")
