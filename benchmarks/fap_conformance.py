@@ -106,7 +106,8 @@ def play_file(head, player, checks, stream) -> dict[str, float]:
             "_ok": ok, "_total": total}
 
 
-def _fmt(v) -> str:
+def fmt_value(v) -> str:
+    """A figure as printed: whole numbers whole, the rest to two decimals."""
     return str(v) if isinstance(v, (int, np.integer)) else f"{v:.2f}"
 
 
@@ -159,13 +160,13 @@ def main(argv=None) -> int:
             res = play_file(head, player, checks, read_fap(path, lenient=True))
             ok, total = ok + res.pop("_ok"), total + res.pop("_total")
             for k, v in res.items():
-                print(f"{hname}.{path.stem}.{k}: {_fmt(v)}")
+                print(f"{hname}.{path.stem}.{k}: {fmt_value(v)}")
                 if k != "fp_conformance_pct" and (isinstance(v, int) or math.isfinite(v)):
                     totals[k] = max(totals.get(k, v), v)
         totals["fp_conformance_pct"] = 100.0 * ok / total if total else float("nan")
         for k in ("eyeball_centre_shift_max_mm", "fp_conformance_pct", "inverted_triangles_max", "edge_stretch_max",
                   "lid_overlap_max_mm", "region_over_fp_max"):
-            print(f"{hname}.{k}: {_fmt(totals[k])}")
+            print(f"{hname}.{k}: {fmt_value(totals[k])}")
     return 0
 
 

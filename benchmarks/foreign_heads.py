@@ -135,15 +135,12 @@ def makehuman_as_source(glb: Path) -> dict[str, float]:
     return out
 
 
-def _fmt(v) -> str:
-    return str(v) if isinstance(v, (int, np.integer)) else f"{v:.2f}"
-
-
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("meshes", nargs="*", type=Path, help="more head meshes (GLB, glTF, OBJ, PLY)")
     ap.add_argument("--no-streams", action="store_true", help="skip the Xface streams")
     args = ap.parse_args(argv)
+    from fap_conformance import fmt_value
     from mpeg4.io import save_head
     from recon.evaluate.makehuman import MAKEHUMAN_DIR, makehuman_head
 
@@ -164,13 +161,13 @@ def main(argv=None) -> int:
         return 2
     for name, path in heads.items():
         for k, v in measure(name, path, streams).items():
-            print(f"{name}.{k}: {_fmt(v)}", flush=True)
+            print(f"{name}.{k}: {fmt_value(v)}", flush=True)
     if makehuman is not None:
         from recon.mark import mark_file
 
         mark_file(makehuman)  # the source needs its points beside it
         for k, v in makehuman_as_source(makehuman).items():
-            print(f"makehuman_source.{k}: {_fmt(v)}", flush=True)
+            print(f"makehuman_source.{k}: {fmt_value(v)}", flush=True)
     return 0
 
 

@@ -209,7 +209,9 @@ def measure_front_only(name, front, side, out: Path, rec: Recogniser, texture_si
     fig["focal_from"] = fit["focal_from"]
     cam = res.cameras["front"].camera
     if cam.perspective:
-        fig["focal_35mm"] = round(cam.focal_px * 43.27 / float(np.hypot(cam.width, cam.height)), 1)
+        from recon.photos import FILM_DIAGONAL_MM
+
+        fig["focal_35mm"] = round(cam.focal_px * FILM_DIAGONAL_MM / float(np.hypot(cam.width, cam.height)), 1)
         fig["camera_distance_cm"] = round(float(np.linalg.norm(cam.centre - head.fp_position("9.3"))) * 100, 1)
     found = read_fdp_json(out / "annotations.fdp.json")
     measure_view(fig, pics, head, cam, read_photo(front), found.views["front"].points, "front", "left", rec)

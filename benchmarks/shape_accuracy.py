@@ -36,12 +36,9 @@ def identity_vertices(data, rng, n_modes=100):
 
 
 def part_vertices(head, ict):
-    out = {}
-    for name, ids in head.metadata["ict_vertex_ids"].items():
-        idx = np.arange(*ids) if len(ids) == 2 and name in head.parts and head.parts[name].n_vertices == ids[1] - ids[0] \
-            else np.asarray(ids)
-        out[name] = ict[idx]
-    return out
+    from mpeg4.generic_head import ict_vertex_ids
+
+    return {name: ict[idx] for name, idx in ict_vertex_ids(head).items()}
 
 
 def project(points, view, perspective, size=1024):

@@ -18,10 +18,25 @@ from .errors import InputError
 from .head import Head
 
 __all__ = ["GENERIC_HEAD_DIR", "generic_head_path", "generic_fat_path", "load_generic_head",
-           "generic_feature_points"]
+           "generic_feature_points", "ict_vertex_ids"]
 
 #: Folder of the shipped generic head.
 GENERIC_HEAD_DIR = Path(__file__).resolve().parents[1] / "data" / "generic_head"
+
+
+def ict_vertex_ids(head: Head) -> dict:
+    """Part name → (n,) int64 ICT FaceKit vertex of each of the part's vertices, from
+    ``metadata["ict_vertex_ids"]`` (a ``[start, stop)`` range or a list per part;
+    ``scripts/build_generic_head.py`` writes it)."""
+    import numpy as np
+
+    out = {}
+    for name, ids in head.metadata["ict_vertex_ids"].items():
+        if name not in head.parts:
+            continue
+        n = head.parts[name].n_vertices
+        out[name] = np.arange(ids[0], ids[1]) if len(ids) == 2 and ids[1] - ids[0] == n else np.asarray(ids)
+    return out
 
 
 def generic_head_path() -> Path:

@@ -48,21 +48,13 @@ def identity_vertices(data: dict, seed: int, spread: float = 1.0, n_modes: int =
     return v * 0.01
 
 
-def _ict_ids(head: Head) -> dict[str, np.ndarray]:
-    out = {}
-    for name, ids in head.metadata["ict_vertex_ids"].items():
-        if name not in head.parts:
-            continue
-        n = head.parts[name].n_vertices
-        out[name] = np.arange(ids[0], ids[1]) if len(ids) == 2 and ids[1] - ids[0] == n else np.asarray(ids)
-    return out
-
-
 def identity_head(data: dict, seed: int, generic: Head | None = None, spread: float = 1.0) -> Head:
     """The generic head reshaped to an ICT identity (same topology, feature points follow)."""
     if generic is None:
         from mpeg4.generic_head import load_generic_head
 
         generic = load_generic_head()
+    from mpeg4.generic_head import ict_vertex_ids
+
     v = identity_vertices(data, seed, spread)
-    return generic.with_vertices({name: v[ids] for name, ids in _ict_ids(generic).items()})
+    return generic.with_vertices({name: v[ids] for name, ids in ict_vertex_ids(generic).items()})

@@ -40,6 +40,9 @@ __all__ = ["detect", "detector", "detect_images", "detect_front", "detect_side",
            "load_mapping", "apply_mapping", "FpMapping", "MediapipeMissing", "mediapipe_available"]
 
 
+_METHOD = "recon.landmarks (MediaPipe face mesh + silhouettes)"  # recorded in the annotations
+
+
 def detect_images(front, side, front_name: str = "front photo", side_name: str = "side photo",
                   side_facing: str | None = None) -> FdpFile:
     """:func:`detect` on (H, W, 3) uint8 RGB arrays.
@@ -64,8 +67,8 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
         f = detect_front(front, front_name, front_mask)
         view = ViewAnnotation(image=None, width=int(front.shape[1]), height=int(front.shape[0]),
                               points=dict(f.points), confidence=dict(f.confidence))
-        return FdpFile(views={"front": view}, metadata={"landmarks": {
-            "method": "recon.landmarks (MediaPipe face mesh + silhouettes)", "source": {"front": dict(f.source)}}})
+        return FdpFile(views={"front": view}, metadata={"landmarks": {"method": _METHOD,
+                                                                      "source": {"front": dict(f.source)}}})
     front_mask, side_mask = head_masks([front, side])
     f = detect_front(front, front_name, front_mask)
     s, shown = detect_side(side, f, front.shape[0], side_name, side_mask, facing=side_facing)
@@ -74,7 +77,7 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
     for name, v, img, path in (("front", f, front, front_name), ("side", s, side, side_name)):
         views[name] = ViewAnnotation(image=None, width=int(img.shape[1]), height=int(img.shape[0]),
                                      points=dict(v.points), confidence=dict(v.confidence))
-    meta = {"landmarks": {"method": "recon.landmarks (MediaPipe face mesh + silhouettes)",
+    meta = {"landmarks": {"method": _METHOD,
                           "side_shows": shown,
                           "side_facing": {"facing": facing.facing, "confidence": round(facing.confidence, 3),
                                           "votes": {k: round(v, 3) for k, v in facing.votes.items()},

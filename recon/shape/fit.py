@@ -19,6 +19,7 @@ from mpeg4.head import Head
 
 from .calibrate import DEFAULT_IPD_MM, Calibration, calibrate
 from .deform import deform_head
+from .identity import POINT_SD_MM
 
 #: Spread (mm) of detected 3D points about what the identity model can express.
 DETECTED_SD_MM = 4.0
@@ -120,31 +121,30 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
         raise InputError(e.what, where=f"{where}, {e.where}" if e.where else where, fix=e.fix) from None
     goal = {i: p for i, p in cal.points.items() if cal.source[i] != "generic"}
     # Detected points nobody checked spread wider than marked ones (a few millimetres).
-    spread = DETECTED_SD_MM if drop_outliers else 2.0
+    spread = DETECTED_SD_MM if drop_outliers else POINT_SD_MM
     start, coefficients = identity_start(generic, goal, spread) if identity_prior else (generic, None)
     head = deform_head(start, goal, method=method)
     head.metadata = dict(head.metadata, fit=dict(
-        cal.assumptions, start="identity model" if coefficients is not None else "generic head", roll_deg=round(cal.roll_deg, 3), side_facing=cal.side_facing,
+        cal.assumptions, start="identity model" if coefficients is not None else "generic head",
+        roll_deg=round(cal.roll_deg, 3), side_facing=cal.side_facing,
         visible_side=cal.visible_side, point_sources=cal.source,
         height_residual_mm={k: round(v, 3) for k, v in cal.height_residual_mm.items()}, dropped_points=cal.dropped))
     return head, cal
 
 
-def identity_start(generic: Head, points, point_sd_mm: float = 2.0) -> tuple[Head, np.ndarray | None]:
+def identity_start(generic: Head, points, point_sd_mm: float = POINT_SD_MM) -> tuple[Head, np.ndarray | None]:
     """The identity model's head nearest 3D feature points (:func:`recon.shape.identity.fit_to_points`),
     where the deformation onto them starts; the generic head itself (and None) when the
     shipped model does not fit it (another generic head, ``MPEG4_GENERIC_HEAD``).
     ``point_sd_mm``: the points' spread about what the model can express (larger for
     detected points nobody checked)."""
-    from .identity import load_identity_model
+    from .identity import fit_to_points, load_identity_model
 
     try:
         model = load_identity_model()
         model.check(generic)
     except InputError:
         return generic, None
-    from .identity import fit_to_points
-
     c = fit_to_points(model, generic, points, point_sd_mm=point_sd_mm)
     return model.head(generic, c), c
 

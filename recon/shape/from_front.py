@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -31,18 +32,16 @@ from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.errors import InputError
 from mpeg4.head import Head
 
-from .calibrate import DEFAULT_IPD_MM, is_core
-from .identity import IdentityModel, load_identity_model
+from recon.photos import FILM_DIAGONAL_MM
 
-__all__ = ["FrontFit", "fit_front", "FOCAL_35MM_CANDIDATES", "POINT_SD_MM", "OUTLIER_SDS"]
+from .calibrate import DEFAULT_IPD_MM, is_core
+from .identity import POINT_SD_MM, IdentityModel, load_identity_model
+
+__all__ = ["FrontFit", "fit_front", "FOCAL_35MM_CANDIDATES", "OUTLIER_SDS"]
 
 #: 35 mm-equivalent focal lengths tried when the photo's focal length is unknown (mm; the
 #: sensor's diagonal 43.3 mm), besides an orthographic camera.
 FOCAL_35MM_CANDIDATES = (24.0, 28.0, 35.0, 50.0, 85.0, 135.0)
-
-#: Expected distance (mm on the face) between a marked point and where the model can put
-#: it: the marking's spread and what 50 modes cannot express of a face.
-POINT_SD_MM = 2.0
 
 #: A detected point the fitted face misses by more than this many spreads is left out.
 OUTLIER_SDS = 4.0
@@ -111,7 +110,20 @@ def _projection_jacobian(cam, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return p0, J
 
 
-def _fit_one(front, ids, weights, generic, model, width, height, focal_px, point_sd_mm, where):
+class _Fit(NamedTuple):
+    """One camera setting's fit: coefficients, camera, the model's points and those moved
+    onto their pixels, the RMS pixel error, the posterior's cost, each point's miss (mm)."""
+
+    coefficients: np.ndarray
+    camera: object
+    points: np.ndarray
+    moved: np.ndarray
+    rms_px: float
+    cost: float
+    residual_mm: np.ndarray
+
+
+def _fit_one(front, ids, weights, generic, model, width, height, focal_px, point_sd_mm, where) -> _Fit:
     from recon.texture.cameras import fit_camera
 
     pixels = {i: np.asarray(front[i], float) for i in ids}
@@ -119,31 +131,26 @@ def _fit_one(front, ids, weights, generic, model, width, height, focal_px, point
     X0 = np.array([generic.fp_position(i) for i in ids])
     B = model.point_basis(generic, ids)
     c = np.zeros(model.n_modes)
-    for _ in range(_ROUNDS):
+    for k in range(_ROUNDS + 1):
+        # The camera for the current identity, and the projection linearised about it.
         X = X0 + B @ c
         cam = fit_camera(dict(zip(ids, X)), pixels, width, height, focal_px=focal_px, where=where)
         p, J = _projection_jacobian(cam.camera, X)
         px_per_m = float(np.median(np.linalg.norm(J[:, 0], axis=1)))
         w = weights / (point_sd_mm * 1e-3 * px_per_m) ** 2
-        A = np.einsum("nij,njk->nik", J, B)  # (n, 2, K)
         r = u - p
+        if k == _ROUNDS or (k and np.abs(step).max() < 1e-4):
+            break
+        A = np.einsum("nij,njk->nik", J, B)  # (n, 2, K)
         H = np.einsum("nik,nil,n->kl", A, A, w) + np.eye(len(c))
         g = np.einsum("nik,ni,n->k", A, r, w) - c
         step = np.linalg.solve(H, g)
         c = c + step
-        if np.abs(step).max() < 1e-4:
-            break
-    X = X0 + B @ c
-    cam = fit_camera(dict(zip(ids, X)), pixels, width, height, focal_px=focal_px, where=where)
-    p, J = _projection_jacobian(cam.camera, X)
-    px_per_m = float(np.median(np.linalg.norm(J[:, 0], axis=1)))
-    r = u - p
-    w = weights / (point_sd_mm * 1e-3 * px_per_m) ** 2
     cost = float(np.sum(w * np.sum(r ** 2, axis=1)) + c @ c)
     # Each marked point moved across the line of sight onto its pixel (least-norm move).
     moves = np.einsum("nij,nj->ni", np.linalg.pinv(J), r)
-    residual_mm = np.linalg.norm(r, axis=1) / px_per_m * 1e3
-    return c, cam, X, X + moves, float(np.sqrt(np.mean(np.sum(r ** 2, axis=1)))), cost, residual_mm
+    return _Fit(c, cam, X, X + moves, float(np.sqrt(np.mean(np.sum(r ** 2, axis=1)))), cost,
+                np.linalg.norm(r, axis=1) / px_per_m * 1e3)
 
 
 def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic: Head | None = None,
@@ -172,7 +179,7 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
     confidence : mapping of str to float, optional
         Per point in (0, 1]: weights (detected points carry them).
     point_sd_mm : float
-        See :data:`POINT_SD_MM`.
+        See :data:`recon.shape.identity.POINT_SD_MM`.
     drop_outliers : bool
         Leave out, one at a time and the worst first, points the fit misses by more than
         :data:`OUTLIER_SDS` spreads (weighted by their confidence), except the face's core
@@ -206,7 +213,7 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
     else:
         tries["orthographic"] = None
         if estimate_focal:
-            tries.update({f"{mm:g}": mm / 43.27 * diag for mm in FOCAL_35MM_CANDIDATES})
+            tries.update({f"{mm:g}": mm / FILM_DIAGONAL_MM * diag for mm in FOCAL_35MM_CANDIDATES})
     fits = {}
     for key, f in tries.items():
         try:
@@ -217,13 +224,13 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
     if not fits:
         raise InputError("no camera explains the points marked on the front photo", where=where,
                          fix="check the points' labels (recon annotate)")
-    best = min(fits, key=lambda k: fits[k][5])
+    best = min(fits, key=lambda k: fits[k].cost)
     dropped = {}
     while drop_outliers:
         # A detected point the fitted face misses by far more than its spread is a
         # detection gone astray (a busy background, hair over the ear): pinning the head
         # to it would dent the head, so the model's place for it is kept. Never the core.
-        res = fits[best][6]
+        res = fits[best].residual_mm
         free = [k for k, i in enumerate(ids) if not is_core(i)]
         worst = max(free, key=lambda k: res[k] * np.sqrt(weights[k]), default=None)
         if worst is None or res[worst] * np.sqrt(weights[worst]) <= OUTLIER_SDS * point_sd_mm or len(ids) <= 8:
@@ -231,7 +238,7 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
         dropped[ids[worst]] = round(float(res[worst]), 1)
         ids, weights = ids[:worst] + ids[worst + 1:], np.delete(weights, worst)
         fits[best] = _fit_one(front, ids, weights, generic, model, width, height, tries[best], point_sd_mm, where)
-    c, cam, X, moved, rms, cost, _ = fits[best]
+    c, cam, _, moved, rms, cost, _ = fits[best]
     head = model.head(generic, c)
     pts = head.fp_positions()
     pos = {i: pts[i] for i in head.feature_points}
@@ -249,7 +256,7 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
     focal = tries[best]
     focal_from = "given" if best == "given" else ("orthographic" if focal is None else "estimated")
     return FrontFit(head, pos, source, c, cam, focal, focal_from, rms, cost,
-                    {key: round(v[5], 2) for key, v in fits.items()}, dropped)
+                    {key: round(v.cost, 2) for key, v in fits.items()}, dropped)
 
 
 def _scaled_camera(fitted, k: float):

@@ -26,8 +26,13 @@ import numpy as np
 from mpeg4.errors import InputError
 from mpeg4.head import Head
 
-__all__ = ["IdentityModel", "fit_to_points", "build_identity_model", "write_identity_model", "load_identity_model",
+__all__ = ["POINT_SD_MM", "IdentityModel", "fit_to_points", "build_identity_model", "write_identity_model", "load_identity_model",
            "identity_model_path"]
+
+
+#: Expected distance (mm) between a marked point and where the model can put it: the
+#: marking's spread and what 50 modes cannot express of a face.
+POINT_SD_MM = 2.0
 
 
 def identity_model_path() -> Path:
@@ -89,7 +94,7 @@ class IdentityModel:
         return out
 
 
-def fit_to_points(model: IdentityModel, head: Head, points, point_sd_mm: float = 2.0,
+def fit_to_points(model: IdentityModel, head: Head, points, point_sd_mm: float = POINT_SD_MM,
                   rounds: int = 6) -> np.ndarray:
     """Coefficients (K,) of the identity whose feature points best match 3D ``points``.
 
@@ -135,12 +140,10 @@ def build_identity_model(deltas_cm: np.ndarray, generic: Head) -> IdentityModel:
     """The model from ICT FaceKit identity deltas (K, N, 3), centimetres, on ICT's vertex
     numbering, taken at the vertices each part of ``generic`` came from
     (``metadata["ict_vertex_ids"]``)."""
-    modes = {}
-    for name, part in generic.parts.items():
-        ids = generic.metadata["ict_vertex_ids"][name]
-        idx = np.arange(*ids) if len(ids) == 2 and ids[1] - ids[0] == part.n_vertices else np.asarray(ids)
-        modes[name] = deltas_cm[:, idx].astype(np.float64) * 0.01
-    return IdentityModel(modes)
+    from mpeg4.generic_head import ict_vertex_ids
+
+    ids = ict_vertex_ids(generic)
+    return IdentityModel({name: deltas_cm[:, ids[name]].astype(np.float64) * 0.01 for name in generic.parts})
 
 
 def write_identity_model(model: IdentityModel, path: str | os.PathLike) -> float:

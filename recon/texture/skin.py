@@ -312,14 +312,12 @@ def _skin_model_layers(front_layer, masks, photo, head_mask, front: FittedCamera
     from .skin_model import fit_skin_model, skin_model_layer
 
     size = front_layer.shape[0]
-    h, w = photo.shape[:2]
-    inside = cv2.warpAffine(np.ones((h, w), np.uint8), A[:2], (size, size), flags=cv2.INTER_NEAREST) > 0
+    # Where the photo shows the person, in texture space: nothing past the photo's edge
+    # (its border row repeated would streak), no wall (it is not skin).
     seen = cv2.warpAffine(_person(photo, head_mask).astype(np.uint8), A[:2], (size, size),
-                          flags=cv2.INTER_NEAREST) > 0
-    # The photo's border row repeated would streak; the wall is not skin.
-    shown = inside & seen
-    masks[1] |= masks[0] & ~shown
-    masks[0] &= shown
+                          flags=cv2.INTER_NEAREST, borderValue=0) > 0
+    masks[1] |= masks[0] & ~seen
+    masks[0] &= seen
 
     def row(ids):
         found = [i for i in ids if i in pts]

@@ -39,12 +39,9 @@ def test_shipped_model_is_the_first_50_ict_modes(generic, ict):
 
 
 def _identity(generic, ict, seed):
-    from recon.evaluate.ict import _ict_ids
+    from recon.evaluate.ict import identity_head
 
-    rng = np.random.default_rng(seed)
-    z = rng.standard_normal(100)  # all 100 modes: half of the face is outside the model
-    v = (ict["vertices"].astype(np.float64) + np.tensordot(z, ict["identity_deltas"].astype(np.float64), 1)) * 0.01
-    return generic.with_vertices({n: v[ids] for n, ids in _ict_ids(generic).items()})
+    return identity_head(ict, seed, generic)  # all 100 modes: half of the face is outside the model
 
 
 def _front_pixels(head, scale=3000.0, size=1024):
@@ -92,7 +89,9 @@ def test_focal_length_is_chosen_among_candidates_and_reported(generic):
     orthographic one, and says the focal length was estimated."""
     from mpeg4.render import Camera
 
-    f = 35 / 43.27 * np.hypot(1024, 1024)  # 35 mm equivalent
+    from recon.photos import FILM_DIAGONAL_MM
+
+    f = 35 / FILM_DIAGONAL_MM * np.hypot(1024, 1024)  # 35 mm equivalent
     pts = generic.fp_positions()
     cam = Camera.fit(np.array(list(pts.values())), 1024, 1024, focal_px=f, margin=0.25)
     px = {i: cam.project(p[None])[0] for i, p in _front_pixels(generic).items() if i in pts
@@ -100,7 +99,7 @@ def test_focal_length_is_chosen_among_candidates_and_reported(generic):
     ff = fit_front(px, 1024, 1024, generic)
     assert ff.focal_from == "estimated" and ff.focal_px is not None
     assert ff.candidates["orthographic"] > ff.cost + 10  # well above noise: exact pixels
-    assert 24 <= ff.focal_px * 43.27 / np.hypot(1024, 1024) <= 50
+    assert 24 <= ff.focal_px * FILM_DIAGONAL_MM / np.hypot(1024, 1024) <= 50
 
 
 def _front_only_fdp(tmp_path):
