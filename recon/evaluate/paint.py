@@ -18,7 +18,7 @@ from recon.texture.materials import eye_texture
 
 from .ict import _SKIN_PARTS, identity_head, load_ict
 
-__all__ = ["Person", "make_person", "skin_albedo"]
+__all__ = ["Person", "make_person", "skin_albedo", "value_noise", "smoothstep", "hairline_height", "ear_distance"]
 
 _SKIN_TONES = np.array([(238, 200, 178), (224, 176, 150), (198, 150, 118), (170, 118, 88), (128, 86, 62),
                         (232, 190, 160), (210, 164, 132)], float)
@@ -39,6 +39,10 @@ class Person:
         The skin as ICT lays out its texture (one mesh per UV tile), painted.
     iris_rgb, hair_rgb, skin_rgb : (3,) float
         The colours drawn for this person.
+    eye_texture : (S, S, 3) uint8
+    dress : list of (str, RenderMesh)
+        What the person wears over the head (:mod:`recon.evaluate.dressing`), each with
+        its kind: ``"hair"``, ``"clothes"`` or ``"glasses"``. Empty for the clean set.
     """
 
     seed: int
@@ -48,6 +52,7 @@ class Person:
     hair_rgb: np.ndarray
     skin_rgb: np.ndarray
     eye_texture: np.ndarray = field(repr=False, default=None)
+    dress: list[tuple[str, RenderMesh]] = field(repr=False, default_factory=list)
 
     @property
     def ipd_mm(self) -> float:
@@ -62,10 +67,10 @@ class Person:
                 continue
             tex = self.eye_texture if name.startswith("eye_") else part.texture
             out.append(RenderMesh(part.vertices, part.triangles, uv=part.uv, texture=tex, colour=part.colour))
-        return out
+        return out + [mesh for _, mesh in self.dress]
 
 
-def _value_noise(points: np.ndarray, spacing: float, seed: int, where: np.ndarray | None = None) -> np.ndarray:
+def value_noise(points: np.ndarray, spacing: float, seed: int, where: np.ndarray | None = None) -> np.ndarray:
     """Smooth noise in [-1, 1] at (K, 3) points (metres): random values on a lattice
     ``spacing`` apart (hashed through a permutation drawn from ``seed``, so it needs no
     stored grid and is the same wherever it is evaluated), blended with smoothstep weights.
@@ -114,7 +119,7 @@ def _polyline_distance(p: np.ndarray, line: np.ndarray) -> tuple[np.ndarray, np.
     return best, share
 
 
-def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
+def smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
     t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
     return t * t * (3 - 2 * t)
 
@@ -128,8 +133,8 @@ def _paint(pos: np.ndarray, part: np.ndarray, fp: dict[str, np.ndarray], ring_up
     ax = np.abs(x)
     col = np.broadcast_to(skin, pos.shape).copy()
     # Blotches and fine grain.
-    col *= (1 + 0.035 * _value_noise(pos, 0.012, seed + 1))[:, None]
-    col *= (1 + 0.02 * _value_noise(pos, 0.003, seed + 2))[:, None]
+    col *= (1 + 0.035 * value_noise(pos, 0.012, seed + 1))[:, None]
+    col *= (1 + 0.02 * value_noise(pos, 0.003, seed + 2))[:, None]
     # Blush on the cheeks and the tip of the nose, redder ears.
     red = np.array([1.0, -0.45, -0.35])
     cheek = np.exp(-((ax - fp["5.3"][0]) ** 2 + (y - fp["5.1"][1] * 0.5 - fp["5.3"][1] * 0.5) ** 2) / 0.018 ** 2)
@@ -149,40 +154,53 @@ def _paint(pos: np.ndarray, part: np.ndarray, fp: dict[str, np.ndarray], ring_up
     contour = np.r_[upper, lower[1:-1]]
     lip = _soft_polygon(pos[:, :2], contour, 0.0008) * (z > fp["8.3"][2] - 0.012)
     lip_rgb = np.array([176, 86, 88]) * (0.75 + 0.25 * skin / 230)
-    col = col * (1 - lip[:, None]) + lip[:, None] * lip_rgb * (1 + 0.05 * _value_noise(pos, 0.0015, seed + 3, lip > 0))[:, None]
+    col = col * (1 - lip[:, None]) + lip[:, None] * lip_rgb * (1 + 0.05 * value_noise(pos, 0.0015, seed + 3, lip > 0))[:, None]
     # Eyebrows: a tapering band along 4.1 → 4.3 → 4.5 (and its mirror), with hair strokes.
     brow_line = np.array([fp["4.1"][:2] + [0.0, -0.002], fp["4.3"][:2] + [0.0, -0.003],
                           fp["4.5"][:2] + [0.0, -0.001]])
     dist, share = _polyline_distance(np.c_[ax, y], brow_line)
     half = 0.0055 * (1 - share) + 0.0025 * share
     near = dist < half
-    strokes = 0.6 + 0.4 * _value_noise(pos * [1.0, 3.0, 1.0], 0.0012, seed + 8, near)
-    brow = (1 - _smoothstep(half * 0.6, half, dist)) * (z > fp["4.5"][2] - 0.02) * np.clip(strokes, 0, 1)
+    strokes = 0.6 + 0.4 * value_noise(pos * [1.0, 3.0, 1.0], 0.0012, seed + 8, near)
+    brow = (1 - smoothstep(half * 0.6, half, dist)) * (z > fp["4.5"][2] - 0.02) * np.clip(strokes, 0, 1)
     col = col * (1 - 0.9 * brow[:, None]) + 0.9 * brow[:, None] * hair * 0.7
     # Lash line along the lid margins (the rim of the eye opening).
     tree_u, tree_l = cKDTree(ring_upper), cKDTree(ring_lower)
     du, _ = tree_u.query(pos)
     dl, _ = tree_l.query(pos)
-    lash = 0.85 * (1 - _smoothstep(0.0004, 0.0016, du)) + 0.35 * (1 - _smoothstep(0.0002, 0.0009, dl))
+    lash = 0.85 * (1 - smoothstep(0.0004, 0.0016, du)) + 0.35 * (1 - smoothstep(0.0002, 0.0009, dl))
     lash *= part == 0
     col = col * (1 - lash[:, None]) + lash[:, None] * np.array([30.0, 22, 20])
-    # Scalp hair above a hairline that runs 11.1 → 11.3 → over the ear → down to the nape.
-    theta = np.degrees(np.arctan2(ax, z - fp["10.9"][2] * 0.5))
-    th = [0.0, np.degrees(np.arctan2(fp["11.3"][0], fp["11.3"][2] - fp["10.9"][2] * 0.5)), 70.0, 100.0, 130.0, 180.0]
-    hy = [fp["11.1"][1], fp["11.3"][1] - 0.004, fp["10.9"][1] + 0.015, fp["10.1"][1] + 0.008, fp["10.5"][1] - 0.005,
-          fp["10.5"][1] - 0.015]
-    line = np.interp(theta, th, hy) + 0.003 * _value_noise(pos, 0.006, seed + 4, y > fp["10.5"][1] - 0.03)
-    scalp = _smoothstep(line - 0.0015, line + 0.0025, y) * (part <= 1)
-    on_ear = np.linalg.norm(np.c_[ax, y, z] - ear_c, axis=1)
-    scalp *= _smoothstep(0.022, 0.03, on_ear)  # not on the ear itself
+    # Scalp hair above the hairline.
+    line = hairline_height(pos, fp, seed)
+    scalp = smoothstep(line - 0.0015, line + 0.0025, y) * (part <= 1)
+    scalp *= smoothstep(0.022, 0.03, ear_distance(pos, fp))  # not on the ear itself
     hairy = scalp > 0
-    grain = 1 + 0.18 * _value_noise(pos, 0.0009, seed + 5, hairy) + 0.1 * _value_noise(pos, 0.004, seed + 6, hairy)
+    grain = 1 + 0.18 * value_noise(pos, 0.0009, seed + 5, hairy) + 0.1 * value_noise(pos, 0.004, seed + 6, hairy)
     col = col * (1 - scalp[:, None]) + scalp[:, None] * hair * grain[:, None]
     # Inside the mouth and behind the eyes.
     mouth = part == 2
-    col[mouth] = np.array([120.0, 52, 56]) * (1 + 0.05 * _value_noise(pos, 0.004, seed + 7, mouth)[mouth])[:, None]
+    col[mouth] = np.array([120.0, 52, 56]) * (1 + 0.05 * value_noise(pos, 0.004, seed + 7, mouth)[mouth])[:, None]
     col[(part == 3) | (part == 4)] = (90.0, 60, 60)
     return np.clip(col, 0, 255)
+
+
+def ear_distance(pos: np.ndarray, fp: dict[str, np.ndarray]) -> np.ndarray:
+    """(K,) distance in metres from neutral-head points (K, 3) to the middle of the nearer ear."""
+    ear_c = np.mean([fp[i] for i in ("10.1", "10.3", "10.5", "10.7", "10.9")], axis=0)
+    return np.linalg.norm(np.c_[np.abs(pos[:, 0]), pos[:, 1:]] - ear_c, axis=1)
+
+
+def hairline_height(pos: np.ndarray, fp: dict[str, np.ndarray], seed: int) -> np.ndarray:
+    """(K,) height (y, metres) of the hairline at neutral-head points (K, 3): the line runs
+    11.1 → 11.3 → over the ear → down to the nape, by the angle round the head's vertical
+    axis, with a few millimetres of seeded waviness. Hair grows above it."""
+    x, y, z = pos.T
+    theta = np.degrees(np.arctan2(np.abs(x), z - fp["10.9"][2] * 0.5))
+    th = [0.0, np.degrees(np.arctan2(fp["11.3"][0], fp["11.3"][2] - fp["10.9"][2] * 0.5)), 70.0, 100.0, 130.0, 180.0]
+    hy = [fp["11.1"][1], fp["11.3"][1] - 0.004, fp["10.9"][1] + 0.015, fp["10.1"][1] + 0.008, fp["10.5"][1] - 0.005,
+          fp["10.5"][1] - 0.015]
+    return np.interp(theta, th, hy) + 0.003 * value_noise(pos, 0.006, seed + 4, y > fp["10.5"][1] - 0.03)
 
 
 def _soft_polygon(p: np.ndarray, poly: np.ndarray, soft: float) -> np.ndarray:
@@ -196,7 +214,7 @@ def _soft_polygon(p: np.ndarray, poly: np.ndarray, soft: float) -> np.ndarray:
         xint = a[0] + (p[:, 1] - a[1]) * (b[0] - a[0]) / np.where(b[1] == a[1], 1e-18, b[1] - a[1])
         inside ^= cross & (p[:, 0] < xint)
     signed = np.where(inside, dist, -dist)
-    return _smoothstep(-soft, soft, signed)
+    return smoothstep(-soft, soft, signed)
 
 
 def _lid_rings(data: dict) -> tuple[np.ndarray, np.ndarray]:
@@ -248,12 +266,14 @@ def _texel_positions(npz: str | None, size: int):
 
 
 def make_person(seed: int, data: dict | None = None, generic: Head | None = None, texture_size: int = 1024,
-                spread: float = 1.0) -> Person:
-    """A painted ICT identity, everything drawn from ``seed``."""
+                spread: float = 1.0, skin_rgb=None) -> Person:
+    """A painted ICT identity, everything drawn from ``seed``; ``skin_rgb`` (3,) in 0–255
+    overrides the drawn skin tone (the rest of the drawing is unchanged)."""
     data = load_ict() if data is None else data
     head = identity_head(data, seed, generic, spread)
     rng = np.random.default_rng(10_000 + seed)
-    skin_rgb = _SKIN_TONES[rng.integers(len(_SKIN_TONES))] * rng.uniform(0.95, 1.05, 3)
+    drawn = _SKIN_TONES[rng.integers(len(_SKIN_TONES))] * rng.uniform(0.95, 1.05, 3)
+    skin_rgb = drawn if skin_rgb is None else np.asarray(skin_rgb, float)
     hair_rgb = _HAIR[rng.integers(len(_HAIR))] * rng.uniform(0.9, 1.1)
     iris_rgb = _IRIS[rng.integers(len(_IRIS))] * rng.uniform(0.9, 1.1, 3)
     from mpeg4.generic_head import load_generic_head

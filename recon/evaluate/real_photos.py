@@ -29,7 +29,7 @@ from mpeg4.preview import head_meshes
 from mpeg4.render import Camera, render
 
 __all__ = ["ipd_px", "rendered_mask", "point_agreement", "head_region", "silhouette_iou", "profile_line",
-           "skin_delta_e", "BROW_IDS"]
+           "skin_delta_e", "relit", "BROW_IDS"]
 
 #: Eyebrow points: where the profile line starts (the highest one a photo shows).
 BROW_IDS = ("4.1", "4.2", "4.3", "4.4", "4.5", "4.6")
@@ -139,3 +139,17 @@ def skin_delta_e(photo: np.ndarray, texture_render: np.ndarray, render_mask: np.
         return float("nan")
     lab = rgb2lab(np.array([[np.median(a, axis=0), np.median(b, axis=0)]]) / 255.0)[0]
     return float(deltaE_ciede2000(lab[0], lab[1]))
+
+
+def relit(texture_render: np.ndarray, lighting) -> np.ndarray | None:
+    """The head's unlit (albedo) render lit as the photo is: times the shading the build
+    fitted to the photo (``recon.texture.delight.Lighting.shading``, 1 off the head); the
+    render itself when the build kept the photo's light (``lighting.fallback``); None when
+    the shading was fitted on a photo of another size."""
+    if lighting.fallback is not None:
+        return texture_render
+    shading = lighting.shading
+    if shading.shape != texture_render.shape[:2]:
+        return None
+    out = texture_render.astype(np.float32) * shading[..., None]
+    return np.clip(np.round(out), 0, 255).astype(np.uint8)

@@ -23,13 +23,15 @@ import numpy as np
 from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.head import Head
 from mpeg4.io.fdp_json import FdpFile, ViewAnnotation
-from mpeg4.render import Camera, look_rotation, render
+from mpeg4.render import Camera, RenderMesh, look_rotation, render
 
 from .ict import default_ict_path, identity_head, identity_vertices, load_ict
+from .dressing import Look, background_image, dress, fitzpatrick_rgb, hair_top, hard_look
 from .paint import Person, make_person, skin_albedo
 
 __all__ = ["PHOTO_LIGHT", "PHOTO_AMBIENT", "skin_albedo", "default_ict_path", "load_ict", "identity_vertices",
-           "identity_head", "Person", "make_person", "photograph", "PhotoPair", "synthetic_pair", "view_camera",
+           "identity_head", "Person", "make_person", "photograph", "photo_labels", "LABELS", "PhotoPair",
+           "synthetic_pair", "hard_pair", "Look", "view_camera",
            "visible_points", "perfect_detector", "CONVENTIONS", "MeshFile", "remeshed_identity"]
 
 #: The light of :func:`photograph`: the direction towards the key light in the camera's
@@ -64,10 +66,22 @@ def view_camera(view: str, target: np.ndarray, width: int, height: int, focal_px
 
 
 def photograph(person: Person, camera: Camera, background=(0.86, 0.87, 0.89)) -> tuple[np.ndarray, np.ndarray]:
-    """(H, W, 3) uint8 photo of a person and the (H, W) bool mask of the head in it.
+    """(H, W, 3) uint8 photo of a person and the (H, W) bool mask of the person in it.
 
-    The backdrop darkens a little towards the bottom, like a studio wall.
+    ``background``: an RGB colour in [0, 1] (a studio wall that darkens a little towards the
+    bottom), or an (H, W, 3) uint8 image (:func:`recon.evaluate.dressing.background_image`)
+    behind the person, blended along the antialiased edges.
     """
+    if isinstance(background, np.ndarray) and background.ndim == 3:
+        meshes = person.meshes()
+        black, depth = render(meshes, camera, background=(0.0, 0.0, 0.0), return_depth=True, samples=8,
+                              ambient=PHOTO_AMBIENT, light=PHOTO_LIGHT)
+        white = render(meshes, camera, background=(1.0, 1.0, 1.0), samples=8, ambient=PHOTO_AMBIENT,
+                       light=PHOTO_LIGHT)
+        # The two renders differ only where the background shows: by its share times 255.
+        clear = (white.astype(np.float32) - black).mean(axis=2, keepdims=True) / 255.0
+        img = black + np.clip(clear, 0, 1) * background.astype(np.float32)
+        return np.clip(np.round(img), 0, 255).astype(np.uint8), np.isfinite(depth)
     img, depth = render(person.meshes(), camera, background=background, return_depth=True, samples=8,
                         ambient=PHOTO_AMBIENT, light=PHOTO_LIGHT)
     mask = np.isfinite(depth)
@@ -79,6 +93,21 @@ def photograph(person: Person, camera: Camera, background=(0.86, 0.87, 0.89)) ->
     img = img.copy()
     img[flat] = np.broadcast_to(bg, img.shape)[flat].astype(np.uint8)
     return img, mask
+
+
+#: What :func:`photo_labels` marks each pixel as.
+LABELS = {"background": 0, "head": 1, "hair": 2, "clothes": 3, "glasses": 4}
+
+
+def photo_labels(person: Person, camera: Camera) -> np.ndarray:
+    """(H, W) uint8: what each pixel of the person's photo shows (:data:`LABELS`): the head
+    (skin, eyes, mouth), hair with volume, clothes, glasses or the background."""
+    step = 40  # codes drawn as grey levels far apart, read back by rounding
+    flat = [RenderMesh(m.vertices, m.triangles, colour=(LABELS["head"] * step / 255.0,) * 3)
+            for m in person.meshes()[:len(person.meshes()) - len(person.dress)]]
+    flat += [RenderMesh(m.vertices, m.triangles, colour=(LABELS[kind] * step / 255.0,) * 3) for kind, m in person.dress]
+    img = render(flat, camera, background=(0.0, 0.0, 0.0), samples=0, ambient=1.0, light=PHOTO_LIGHT)
+    return np.clip(np.round(img[..., 0] / step), 0, max(LABELS.values())).astype(np.uint8)
 
 
 def visible_points(head: Head, view: str) -> list[str]:
@@ -107,6 +136,10 @@ class PhotoPair:
     cameras : dict of str to Camera
     fdp : FdpFile
         The visible feature points' true pixels in both views (image sizes set).
+    look : Look or None
+        How the person is dressed and photographed (None: the clean set).
+    labels : dict of str to (H, W) uint8, or None
+        With a look, what each pixel shows (:func:`photo_labels`).
     """
 
     person: Person
@@ -115,6 +148,8 @@ class PhotoPair:
     masks: dict[str, np.ndarray]
     cameras: dict[str, Camera]
     fdp: FdpFile
+    look: Look | None = None
+    labels: dict[str, np.ndarray] | None = None
 
     @property
     def focal_px(self) -> float | None:
@@ -122,7 +157,8 @@ class PhotoPair:
 
 
 def synthetic_pair(seed: int, size: tuple[int, int] = (1024, 1280), focal_mm: float | None = 100.0,
-                   distance: float = 1.8, data: dict | None = None, texture_size: int = 1024) -> PhotoPair:
+                   distance: float = 1.8, data: dict | None = None, texture_size: int = 1024,
+                   look: Look | None = None) -> PhotoPair:
     """A front and a side (left profile) photo of the person drawn from ``seed``.
 
     Parameters
@@ -139,8 +175,17 @@ def synthetic_pair(seed: int, size: tuple[int, int] = (1024, 1280), focal_mm: fl
         The ICT FaceKit arrays (:func:`load_ict`).
     texture_size : int
         Resolution of the painted skin tiles.
+    look : Look, optional
+        Hair volume, skin type, clothes, glasses and background
+        (:mod:`recon.evaluate.dressing`); the truth of 11.5 (the top of the hair) then lies
+        on the hair. None: the clean set (painted hair, a plain wall).
     """
-    person = make_person(seed, data, texture_size=texture_size)
+    skin_rgb = None
+    if look is not None and look.skin_type is not None:
+        skin_rgb = fitzpatrick_rgb(look.skin_type) * np.random.default_rng(40_000 + seed).uniform(0.97, 1.03, 3)
+    person = make_person(seed, data, texture_size=texture_size, skin_rgb=skin_rgb)
+    if look is not None:
+        dress(person, look)
     head = person.head
     w, h = size
     f = None if focal_mm is None else h * focal_mm / 24.0
@@ -152,16 +197,31 @@ def synthetic_pair(seed: int, size: tuple[int, int] = (1024, 1280), focal_mm: fl
     targets = {"front": np.array([0.0, y_mid, z_mid]), "side": np.array([0.0, y_mid, z_mid])}
     scale = None if f is not None else h * 100.0 / 24.0 / distance
     fdp = FdpFile(metadata={"synthetic": {"seed": seed, "focal_px": f, "ipd_mm": round(person.ipd_mm, 4)}})
-    photos, masks, cams = {}, {}, {}
-    for view in ("front", "side"):
+    photos, masks, cams, labels = {}, {}, {}, {}
+    truth = {i: head.fp_position(i) for i in head.feature_points}
+    if look is not None:
+        truth["11.5"] = hair_top(person)
+        fdp.metadata["synthetic"]["look"] = look.name
+    for k, view in enumerate(("front", "side")):
         cam = view_camera(view, targets[view], w, h, focal_px=f, distance=distance, scale_px=scale)
-        img, mask = photograph(person, cam)
+        if look is None:
+            img, mask = photograph(person, cam)
+        else:
+            img, mask = photograph(person, cam, background_image(look.background, w, h, 2 * seed + k))
+            labels[view] = photo_labels(person, cam)
         ids = visible_points(head, view)
-        px = cam.project(np.array([head.fp_position(i) for i in ids]))
+        px = cam.project(np.array([truth[i] for i in ids]))
         fdp.views[view] = ViewAnnotation(image=None, width=w, height=h,
                                          points={i: p for i, p in zip(ids, px)})
         photos[view], masks[view], cams[view] = img, mask, cam
-    return PhotoPair(person, photos["front"], photos["side"], masks, cams, fdp)
+    return PhotoPair(person, photos["front"], photos["side"], masks, cams, fdp, look, labels or None)
+
+
+def hard_pair(seed: int, **kwargs) -> PhotoPair:
+    """:func:`synthetic_pair` of the harder set: the person dressed by
+    :func:`recon.evaluate.dressing.hard_look` (hair volume, a Fitzpatrick skin type, clothes,
+    sometimes glasses, a busy background)."""
+    return synthetic_pair(seed, look=hard_look(seed), **kwargs)
 
 
 def perfect_detector(points: dict[str, np.ndarray], name: str = "perfect 2D detector"):

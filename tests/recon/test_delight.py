@@ -98,3 +98,30 @@ def test_a_de_lit_photo_is_judged_before_it_is_used():
     burnt = photo.copy()
     burnt[5:8, 5:15] = 255  # 30 % of the skin white where the photo was not
     assert "burn 30% of the skin" in judge(photo, burnt, fine, skin)
+
+
+def test_relighting_the_albedo_gives_back_the_photo_s_skin_tone():
+    """The real-photo benchmark's relit skin colour: the de-lit photo times the fitted
+    shading is the photo again (to rounding), so its CIEDE2000 to the photo is ~0, while
+    the albedo alone differs by the light the fit took out."""
+    from types import SimpleNamespace
+
+    from skimage.color import deltaE_ciede2000, rgb2lab
+
+    from recon.evaluate.real_photos import relit
+
+    photo, n, mask, shade, _, blotch = _sphere_photo((0.5, 0.4, 0.8), 0.35)
+    lit = fit_lighting(photo, n, mask, mask.astype(np.float32))
+    albedo = np.clip(np.round(photo / lit.shading[..., None]), 0, 255).astype(np.uint8)
+    back = relit(albedo, lit)
+    face = mask & lit.trust & ~blotch
+
+    def median_de(a, b):
+        lab = rgb2lab(np.array([[np.median(a[face], axis=0), np.median(b[face], axis=0)]]) / 255.0)[0]
+        return float(deltaE_ciede2000(lab[0], lab[1]))
+
+    assert median_de(back, photo) < 0.5
+    assert np.abs(back[face].astype(int) - photo[face]).max() <= 3
+    # A texture that kept the light (the build's fallback) is already lit as the photo is.
+    assert relit(photo, SimpleNamespace(fallback="implausible", shading=lit.shading)) is photo
+    assert relit(albedo, SimpleNamespace(fallback=None, shading=lit.shading[1:])) is None
