@@ -18,7 +18,9 @@ annotations, and measures the head against the photos (:mod:`recon.evaluate.real
   camera; ``identity_distance_other_people``: the same between different people's front
   photos, the baseline a render must beat (the usual same-person threshold is 0.6);
 - ``skin_delta_e``: CIEDE2000 between the photo's median skin colour (cheeks, forehead) and
-  the albedo texture's, rendered unlit from the front camera.
+  the albedo texture's, rendered unlit from the front camera; ``skin_delta_e_relit``: the
+  same with the render relit as the photo is lit (times the shading the build fitted to the
+  photo and took out of the texture); ``skin_delta_e_worst``: the largest over people.
 
 One ``name[person]: value`` line per figure and person, then the medians over people with
 the names above (failed builds count in ``built``; their figures are absent, not zero), and
@@ -47,7 +49,7 @@ PORTRAITS = ROOT.parent / "shared" / "data" / "real_photos" / "front"
 EXTENSIONS = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
 FIGURES = ("built", "point_agreement_ipd_pct", "profile_line_ipd_pct", "silhouette_iou_front",
            "silhouette_iou_side", "heldout_profile_line_ipd_pct", "heldout_silhouette_iou", "identity_distance",
-           "identity_distance_other_people", "skin_delta_e")
+           "identity_distance_other_people", "skin_delta_e", "skin_delta_e_relit")
 
 
 def photo(folder: Path, stem: str) -> Path | None:
@@ -129,7 +131,7 @@ def measure(name, front, side, other, out: Path, rec: Recogniser, texture_size: 
     images = {"front": read_photo(front), "side": read_photo(side)}
     for view in ("front", "side"):
         measure_view(fig, pics, head, res.cameras[view].camera, images[view], found.views[view].points, view,
-                     facing, rec)
+                     facing, rec, res.skin.lighting.get(view))
     if other is not None:
         try:
             img, pts, cam, facing_o = unseen_view(head, front, other)
@@ -161,9 +163,11 @@ def unseen_view(head, front, side) -> tuple:
 
 
 def measure_view(fig: dict, pics: dict, head, cam, image: np.ndarray, pts: dict, view: str, facing: str,
-                 rec: Recogniser) -> None:
+                 rec: Recogniser, lighting=None) -> None:
     """The figures of one photo (point agreement, silhouette; profile line on a side photo,
-    skin colour and identity on a front photo) into ``fig``, its pictures into ``pics``."""
+    skin colour and identity on a front photo) into ``fig``, its pictures into ``pics``.
+    ``lighting``: the light the build fitted to this photo and took out of the texture
+    (``recon.texture.delight.Lighting``), to relight the albedo as the photo is lit."""
     from recon.evaluate import real_photos as rp
 
     ipd = rp.ipd_px(head, cam)
@@ -176,6 +180,10 @@ def measure_view(fig: dict, pics: dict, head, cam, image: np.ndarray, pts: dict,
         fig["profile_line_ipd_pct"] = rp.profile_line(region, mask, pts, facing, ipd)
     else:
         fig["skin_delta_e"] = rp.skin_delta_e(image, albedo, mask, pts, ipd)
+        if lighting is not None:
+            relit = rp.relit(albedo, lighting)
+            if relit is not None:
+                fig["skin_delta_e_relit"] = rp.skin_delta_e(image, relit, mask, pts, ipd)
     lit = render_lit(head, cam)
     if rec.ok and view == "front":
         e_photo, e_render = rec.embed(image), rec.embed(lit)
@@ -214,7 +222,8 @@ def measure_front_only(name, front, side, out: Path, rec: Recogniser, texture_si
         fig["focal_35mm"] = round(cam.focal_px * FILM_DIAGONAL_MM / float(np.hypot(cam.width, cam.height)), 1)
         fig["camera_distance_cm"] = round(float(np.linalg.norm(cam.centre - head.fp_position("9.3"))) * 100, 1)
     found = read_fdp_json(out / "annotations.fdp.json")
-    measure_view(fig, pics, head, cam, read_photo(front), found.views["front"].points, "front", "left", rec)
+    measure_view(fig, pics, head, cam, read_photo(front), found.views["front"].points, "front", "left", rec,
+                 res.skin.lighting.get("front"))
     if side is not None:
         try:
             img, pts, unseen, facing = unseen_view(head, front, side)
@@ -312,12 +321,20 @@ def main(argv=None) -> int:
     pa = [f[k] for f in results.values() for k in ("point_agreement_front_ipd_pct", "point_agreement_side_ipd_pct")
           if k in f]
     print(f"point_agreement_ipd_pct: {np.median(pa) if pa else float('nan'):.3f}")
-    for key in FIGURES[2:-3]:
+    for key in FIGURES[2:-4]:
         print(f"{key}: {median(key):.3f}")
     print(f"identity_distance: {median('identity_distance'):.3f}")
     print(f"identity_distance_other_people: {np.median(others) if others else float('nan'):.3f}")
     print(f"skin_delta_e: {median('skin_delta_e'):.3f}")
+    print(f"skin_delta_e_relit: {median('skin_delta_e_relit'):.3f}")
+    print(f"skin_delta_e_worst: {worst(results.values(), 'skin_delta_e'):.3f}")
     return 0
+
+
+def worst(rows, key) -> float:
+    """The largest finite value of a figure over people (nan when none has it)."""
+    vals = [f[key] for f in rows if key in f and isinstance(f[key], float) and np.isfinite(f[key])]
+    return float(max(vals)) if vals else float("nan")
 
 
 def portraits(folders) -> list[tuple[str, Path]]:
@@ -357,8 +374,12 @@ def front_only(todo, args, rec: Recogniser, two_photo: dict) -> None:
     for key in ("profile_line_ipd_pct", "silhouette_iou_side"):
         same = [f for n, f in two_photo.items() if "+" not in n]  # the same pairs, their own profiles
         print(f"front_only_{key}: {median(pairs, key):.3f} (two photos: {median(same, key):.3f})")
-    for key in ("identity_distance", "skin_delta_e", "silhouette_iou_front", "point_agreement_front_ipd_pct"):
+    for key in ("identity_distance", "skin_delta_e", "skin_delta_e_relit", "silhouette_iou_front",
+                "point_agreement_front_ipd_pct"):
         print(f"front_only_portraits_{key}: {median(alone, key):.3f}")
+    # The portraits' skin tones, built from the front photo alone (issue: de-lighting on every tone).
+    print(f"skin_delta_e_front_set: {median(alone, 'skin_delta_e'):.3f} (worst {worst(alone, 'skin_delta_e'):.3f}, "
+          f"relit {median(alone, 'skin_delta_e_relit'):.3f}, {sum('skin_delta_e' in f for f in alone)} portraits)")
     print(f"front_only_seconds: {median(list(results.values()), 'seconds'):.1f}")
 
 
