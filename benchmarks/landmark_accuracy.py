@@ -79,19 +79,28 @@ def draw_points(image: np.ndarray, points: dict, source: dict | None = None, tru
 
 
 def measure(make_pair, seeds, label: str, mirrored: bool, picture: Path | None):
-    """Detect on each seed's pair; (rows, detection times, mirrored differences, mirrored facings)."""
+    """Detect on each seed's pair; (rows, detection times, mirrored differences, mirrored
+    facings, the refusals)."""
     from PIL import Image
 
+    from mpeg4.errors import InputError
     from recon.landmarks import detect_images
 
     rows = []  # (seed, view, fp, kind, err)
+    refused = []
     times, flip_diffs, flip_sides = [], [], []
     for seed in seeds:
         pair = make_pair(seed)
         truth = pair.fdp.views
         ipd = float(np.linalg.norm(truth["front"].points["3.5"] - truth["front"].points["3.6"]))
         t0 = time.perf_counter()
-        fdp = detect_images(pair.front, pair.side)
+        try:
+            fdp = detect_images(pair.front, pair.side)
+        except InputError as e:  # counts: every point of the pair is missing
+            refused.append(f"{seed}: {e}")
+            print(f"{label} identity {seed}: refused ({e})", file=sys.stderr)
+            rows += [(seed, v, i, "missing", float("nan")) for v in ("front", "side") for i in truth[v].points]
+            continue
         times.append(time.perf_counter() - t0)
         src = fdp.metadata["landmarks"]["source"]
         for view in ("front", "side"):
@@ -115,7 +124,7 @@ def measure(make_pair, seeds, label: str, mirrored: bool, picture: Path | None):
               f"{np.nanmedian([r[4] for r in rows if r[0] == seed and r[1] == 'front']):.2f} %, side median "
               f"{np.nanmedian([r[4] for r in rows if r[0] == seed and r[1] == 'side']):.2f} % IPD "
               f"({times[-1]:.2f} s)", file=sys.stderr)
-    return rows, times, flip_diffs, flip_sides
+    return rows, times, flip_diffs, flip_sides, refused
 
 
 def report(rows, prefix: str) -> dict:
@@ -172,9 +181,11 @@ def main(argv=None) -> int:
     for name in args.sets:
         clean = name == "clean"
         picture = args.pair_picture if clean else args.pair_picture.with_name(args.pair_picture.stem + "_hard.png")
-        rows, times, flip_diffs, flip_sides = measure(synthetic_pair if clean else hard_pair, seeds, name,
-                                                      mirrored=clean, picture=picture)
+        rows, times, flip_diffs, flip_sides, refused = measure(synthetic_pair if clean else hard_pair, seeds, name,
+                                                               mirrored=clean, picture=picture)
         prefix = "" if clean else "hard_"
+        print(f"{prefix}detected: {len(seeds) - len(refused)} of {len(seeds)} pairs"
+              + "".join(f"\n# refused {r}" for r in refused))
         results[name] = report(rows, prefix)
         if clean:
             print(f"side_mirrored_photo_shows: {', '.join(sorted(set(flip_sides)))} (the unmirrored photos show L)")

@@ -168,9 +168,9 @@ def from_photos(generic, people: int) -> str:
             t0 = time.perf_counter()
             pair = make(seed)
             truth = pair.person.head
-            fdp = detect_images(pair.front, pair.side)
-            fdp.metadata["reviewed"] = False  # as recon build marks detected points: outliers dropped
             try:
+                fdp = detect_images(pair.front, pair.side)
+                fdp.metadata["reviewed"] = False  # as recon build marks detected points: outliers dropped
                 head, cal = fit_head(fdp, generic=generic, ipd_mm=pair.person.ipd_mm, focal_px=pair.focal_px)
             except InputError as e:
                 failed += 1
