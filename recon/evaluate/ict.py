@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import functools
 import os
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -37,24 +38,33 @@ def load_ict(path: str | os.PathLike | None = None) -> dict:
         return {k: d[k] for k in d.files}
 
 
-def identity_vertices(data: dict, seed: int, spread: float = 1.0, n_modes: int = 100) -> np.ndarray:
-    """(N, 3) vertices in metres of the ICT identity ``mean + sum z_i mode_i``, z ~ N(0, spread²).
+def identity_vertices(data: dict, seed: int, spread: float = 1.0, n_modes: int = 100,
+                      expression: Mapping[str, float] | None = None) -> np.ndarray:
+    """(N, 3) vertices in metres of the ICT identity ``mean + sum z_i mode_i``, z ~ N(0, spread²),
+    with ``expression`` (ICT expression name → weight, e.g. ``{"eyeBlink_L": 0.5}``) added.
 
     ``seed`` 0 with ``spread`` 0 is the model mean.
     """
     rng = np.random.default_rng(seed)
     z = np.clip(rng.standard_normal(n_modes), -2.5, 2.5) * spread
     v = data["vertices"].astype(np.float64) + np.tensordot(z, data["identity_deltas"][:n_modes].astype(np.float64), 1)
+    names = [str(n) for n in data["expression_names"]] if expression else []
+    for name, w in (expression or {}).items():
+        if name not in names:
+            raise InputError(f"the ICT FaceKit has no expression {name!r}", fix=f"use one of {', '.join(names)}")
+        v = v + float(w) * data["expression_deltas"][names.index(name)].astype(np.float64)
     return v * 0.01
 
 
-def identity_head(data: dict, seed: int, generic: Head | None = None, spread: float = 1.0) -> Head:
-    """The generic head reshaped to an ICT identity (same topology, feature points follow)."""
+def identity_head(data: dict, seed: int, generic: Head | None = None, spread: float = 1.0,
+                  expression: Mapping[str, float] | None = None) -> Head:
+    """The generic head reshaped to an ICT identity (same topology, feature points follow),
+    posed by ``expression`` (see :func:`identity_vertices`)."""
     if generic is None:
         from mpeg4.generic_head import load_generic_head
 
         generic = load_generic_head()
     from mpeg4.generic_head import ict_vertex_ids
 
-    v = identity_vertices(data, seed, spread)
+    v = identity_vertices(data, seed, spread, expression=expression)
     return generic.with_vertices({name: v[ids] for name, ids in ict_vertex_ids(generic).items()})

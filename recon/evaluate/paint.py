@@ -7,6 +7,7 @@ every identity; :func:`skin_albedo` gives the paint at the skin's vertices (the 
 from __future__ import annotations
 
 import functools
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -266,11 +267,12 @@ def _texel_positions(npz: str | None, size: int):
 
 
 def make_person(seed: int, data: dict | None = None, generic: Head | None = None, texture_size: int = 1024,
-                spread: float = 1.0, skin_rgb=None) -> Person:
+                spread: float = 1.0, skin_rgb=None, expression: Mapping[str, float] | None = None) -> Person:
     """A painted ICT identity, everything drawn from ``seed``; ``skin_rgb`` (3,) in 0–255
-    overrides the drawn skin tone (the rest of the drawing is unchanged)."""
+    overrides the drawn skin tone (the rest of the drawing is unchanged); ``expression``
+    (ICT expression name → weight) poses it, the paint staying on the skin it was laid on."""
     data = load_ict() if data is None else data
-    head = identity_head(data, seed, generic, spread)
+    head = identity_head(data, seed, generic, spread, expression)
     rng = np.random.default_rng(10_000 + seed)
     drawn = _SKIN_TONES[rng.integers(len(_SKIN_TONES))] * rng.uniform(0.95, 1.05, 3)
     skin_rgb = drawn if skin_rgb is None else np.asarray(skin_rgb, float)

@@ -15,6 +15,7 @@ The ICT FaceKit (MIT, USC Institute for Creative Technologies) is read from
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -158,7 +159,7 @@ class PhotoPair:
 
 def synthetic_pair(seed: int, size: tuple[int, int] = (1024, 1280), focal_mm: float | None = 100.0,
                    distance: float = 1.8, data: dict | None = None, texture_size: int = 1024,
-                   look: Look | None = None) -> PhotoPair:
+                   look: Look | None = None, expression: Mapping[str, float] | None = None) -> PhotoPair:
     """A front and a side (left profile) photo of the person drawn from ``seed``.
 
     Parameters
@@ -179,11 +180,14 @@ def synthetic_pair(seed: int, size: tuple[int, int] = (1024, 1280), focal_mm: fl
         Hair volume, skin type, clothes, glasses and background
         (:mod:`recon.evaluate.dressing`); the truth of 11.5 (the top of the hair) then lies
         on the hair. None: the clean set (painted hair, a plain wall).
+    expression : mapping of str to float, optional
+        ICT expression name → weight, the person's pose in both photos (e.g. lids half
+        closed: ``{"eyeBlink_L": 0.5, "eyeBlink_R": 0.5}``); the truth is the posed head.
     """
     skin_rgb = None
     if look is not None and look.skin_type is not None:
         skin_rgb = fitzpatrick_rgb(look.skin_type) * np.random.default_rng(40_000 + seed).uniform(0.97, 1.03, 3)
-    person = make_person(seed, data, texture_size=texture_size, skin_rgb=skin_rgb)
+    person = make_person(seed, data, texture_size=texture_size, skin_rgb=skin_rgb, expression=expression)
     if look is not None:
         dress(person, look)
     head = person.head

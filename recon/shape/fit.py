@@ -75,7 +75,8 @@ def attach_photo_sizes(fdp, sizes: dict[str, tuple[int, int]], where: str, photo
 
 def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
              method: str = "dffd", where: str = "fdp.json", height_tol_mm: float = 8.0,
-             drop_outliers: bool | None = None, identity_prior: bool = True) -> tuple[Head, Calibration]:
+             drop_outliers: bool | None = None, identity_prior: bool = True,
+             neutral_lids: bool = True) -> tuple[Head, Calibration]:
     """The generic head deformed to the feature points annotated on two photos.
 
     Parameters
@@ -98,6 +99,10 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
     identity_prior : bool
         Start the deformation from the identity model's head fitted to the 3D points
         (:func:`identity_start`) rather than from the generic head itself.
+    neutral_lids : bool
+        Pose the start's lids as open as the photos show them
+        (:func:`recon.shape.lids.neutral_lids`) before the deformation; recorded in
+        ``metadata["fit"]["lids"]``.
 
     Returns
     -------
@@ -123,13 +128,52 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
     # Detected points nobody checked spread wider than marked ones (a few millimetres).
     spread = DETECTED_SD_MM if drop_outliers else POINT_SD_MM
     start, coefficients = identity_start(generic, goal, spread) if identity_prior else (generic, None)
-    head = deform_head(start, goal, method=method)
+    start, pinned, lids = _pose_lids(start, goal, views["front"].points, neutral_lids)
+    head = _settle_lids(deform_head(start, pinned, method=method), goal, lids)
     head.metadata = dict(head.metadata, fit=dict(
         cal.assumptions, start="identity model" if coefficients is not None else "generic head",
         roll_deg=round(cal.roll_deg, 3), side_facing=cal.side_facing,
         visible_side=cal.visible_side, point_sources=cal.source,
-        height_residual_mm={k: round(v, 3) for k, v in cal.height_residual_mm.items()}, dropped_points=cal.dropped))
+        height_residual_mm={k: round(v, 3) for k, v in cal.height_residual_mm.items()}, dropped_points=cal.dropped,
+        lids=_lids_built(head, lids)))
     return head, cal
+
+
+def _pose_lids(start: Head, goal: dict, front: dict, pose: bool) -> tuple[Head, dict, dict | None]:
+    """The start with its lids posed as the front photo's points show them
+    (:func:`recon.shape.lids.neutral_lids`) when ``pose``; the goal the deformation then
+    pins; what was done."""
+    if not pose:
+        return start, goal, None
+    from .lids import neutral_lids
+
+    return neutral_lids(start, goal, front)
+
+
+def _settle_lids(head: Head, goal: dict, record: dict | None) -> Head:
+    """:func:`recon.shape.lids.settle_lids` after a deformation that started from posed lids."""
+    if not record:
+        return head
+    from .lids import settle_lids
+
+    return settle_lids(head, goal, record)
+
+
+def _lids_built(head: Head, record: dict | None) -> dict:
+    """``metadata["fit"]["lids"]``: per eye, what :func:`recon.shape.lids.neutral_lids` did,
+    with the built head's lid heights (``built``, in eye widths, as the photo's are
+    measured) and the margins' distance in height (``opening_mm``, IRISD0 for the left eye)."""
+    from .lids import lid_heights, lid_opening_mm
+
+    heights, opening = lid_heights(head.fp_positions()), lid_opening_mm(head)
+    out = {"posed": bool(record)}
+    for eye, mm in opening.items():
+        r = dict((record or {}).get(eye, {}))
+        if eye in heights:
+            r["built"] = {"upper": round(float(heights[eye][0]), 4), "lower": round(float(heights[eye][1]), 4)}
+        r["opening_mm"] = round(mm, 3)
+        out[eye] = r
+    return out
 
 
 def identity_start(generic: Head, points, point_sd_mm: float = POINT_SD_MM) -> tuple[Head, np.ndarray | None]:
@@ -157,7 +201,8 @@ def has_side(fdp) -> bool:
 
 
 def fit_head_front(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
-                   method: str = "dffd", where: str = "fdp.json", estimate_focal: bool = True):
+                   method: str = "dffd", where: str = "fdp.json", estimate_focal: bool = True,
+                   neutral_lids: bool = True):
     """The generic head deformed to the feature points of a front photo alone.
 
     The identity model fitted to the front photo's points gives their depth and the rest
@@ -173,6 +218,8 @@ def fit_head_front(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD
     focal_px : float, optional
         The photo's focal length, pixels; estimated from the face when None and
         ``estimate_focal`` (see :func:`recon.shape.from_front.fit_front`).
+    neutral_lids : bool
+        See :func:`fit_head`.
 
     Returns
     -------
@@ -197,14 +244,15 @@ def fit_head_front(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD
                        drop_outliers=fdp.metadata.get("reviewed") is False)
     except InputError as e:
         raise InputError(e.what, where=f"{where}, views.front", fix=e.fix) from None
-    head = deform_head(ff.head, ff.points, method=method)
+    start, pinned, lids = _pose_lids(ff.head, ff.points, view.points, neutral_lids)
+    head = _settle_lids(deform_head(start, pinned, method=method), ff.points, lids)
     head.metadata = dict(head.metadata, fit=dict(
         depth="estimated: identity model fitted to the front photo (no side photo)",
         ipd_mm=ipd_mm, camera="orthographic" if ff.focal_px is None else "pinhole",
         focal_px=None if ff.focal_px is None else round(ff.focal_px, 1), focal_from=ff.focal_from,
         focal_costs=ff.candidates, model_rms_px=round(ff.rms_px, 2),
         model_coefficients=[round(float(c), 3) for c in ff.coefficients], point_sources=ff.source,
-        dropped_points=ff.dropped))
+        dropped_points=ff.dropped, lids=_lids_built(head, lids)))
     return head, ff
 
 
