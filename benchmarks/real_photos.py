@@ -4,7 +4,8 @@ For each person (a folder with ``front.*``, ``side.*`` and optionally ``side_oth
 of jpg, png, tif) it runs what a user runs, ``recon build FRONT SIDE -o OUT`` with no
 annotations, and measures the head against the photos (:mod:`recon.evaluate.real_photos`):
 
-- ``built`` (1, or 0 with the error quoted) and the wall time;
+- ``built`` (1, or 0 with the error quoted) and the wall time, split into detection, shape,
+  texture and export (``build_seconds``, medians);
 - ``point_agreement_ipd_pct``: RMS distance of the detected points from the head's points
   projected by the fitted cameras, % of the interpupillary distance (IPD), per photo;
 - ``profile_line_ipd_pct``: the side photo's face-side outline from the brow to the chin
@@ -125,6 +126,8 @@ def measure(name, front, side, other, out: Path, rec: Recogniser, texture_size: 
     fig["built"] = 1
     fig["seconds"] = round(time.perf_counter() - t0, 1)
     res = built[0]
+    for step in ("detection", "shape", "texture", "export"):
+        fig[f"seconds_{step}"] = round(res.timings.get(step, float("nan")), 2)
     head = res.head
     found = read_fdp_json(out / "annotations.fdp.json")
     facing = found.metadata.get("landmarks", {}).get("side_facing", {}).get("facing", "left")
@@ -328,6 +331,9 @@ def main(argv=None) -> int:
     print(f"skin_delta_e: {median('skin_delta_e'):.3f}")
     print(f"skin_delta_e_relit: {median('skin_delta_e_relit'):.3f}")
     print(f"skin_delta_e_worst: {worst(results.values(), 'skin_delta_e'):.3f}")
+    print(f"build_seconds: {median('seconds'):.1f} (detection {median('seconds_detection'):.1f}, shape "
+          f"{median('seconds_shape'):.1f}, texture {median('seconds_texture'):.1f}, export "
+          f"{median('seconds_export'):.1f}; medians, texture {args.texture_size} px)")
     return 0
 
 

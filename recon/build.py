@@ -148,7 +148,9 @@ class BuildResult:
         Of the texture's photos (``front``, ``side``, ``mirrored``).
     skin : recon.texture.SkinTexture
     timings : dict of str to float
-        Seconds per step.
+        Seconds per step: ``shape``, ``texture``, ``atlas`` (with ``--atlas``), and from
+        :func:`run_build` also ``detection`` (when the points were detected), ``export``
+        (writing the bundle) and ``total`` (from the command's start).
     """
 
     head: Head
@@ -525,12 +527,13 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
         for warning in meta.get("warnings", []):
             say(f"warning: {warning}")
         say(f"the detected points are in {detected} (unreviewed)")
+    detect_s = time.perf_counter() - t0 if detected is not None else None
     if texture_from is not None and fdp is not None:
         raise InputError("--texture-from goes with --shape-from, not with --fdp", where="recon build",
                          fix="use --shape-from A.fdp.json --texture-from B.fdp.json")
     try:
         paths = _build_into(front, side, shape_path, out_dir, texture_from, ipd_mm, focal_px, method, texture_size,
-                            atlas, keep_lighting, height_tol_mm, say, result, created, provenance, t0)
+                            atlas, keep_lighting, height_tol_mm, say, result, created, provenance, t0, detect_s)
     except InputError as e:
         if detected is None:
             raise
@@ -544,8 +547,9 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
 
 
 def _build_into(front, side, shape_path, out_dir, texture_from, ipd_mm, focal_px, method, texture_size, atlas,
-                keep_lighting, height_tol_mm, say, result, created, provenance, t0) -> dict[str, Path]:
-    """:func:`run_build` once the annotations are known."""
+                keep_lighting, height_tol_mm, say, result, created, provenance, t0, detect_s=None) -> dict[str, Path]:
+    """:func:`run_build` once the annotations are known; ``detect_s``: the seconds detection took
+    (None: the points were given)."""
     say("reading the photos and annotations")
     shape = load_pair(shape_path, front, side)
     texture = load_pair(texture_from) if texture_from is not None else None
@@ -581,9 +585,15 @@ def _build_into(front, side, shape_path, out_dir, texture_from, ipd_mm, focal_px
         written = _write_bundle(res, shape, texture, options, folder, say, created, provenance)
         return {key: p for key, p in written.items() if p.exists()}
 
+    t_export = time.perf_counter()
     final = publish(out_dir, write)
+    res.timings["export"] = time.perf_counter() - t_export
+    if detect_s is not None:
+        res.timings["detection"] = detect_s
+    res.timings["total"] = time.perf_counter() - t0
     if result is not None:
         result.append(res)
-    say(f"done in {time.perf_counter() - t0:.1f} s (shape {res.timings['shape']:.1f} s, texture "
-        f"{res.timings['texture']:.1f} s)")
+    split = ", ".join(f"{k} {res.timings[k]:.1f} s" for k in ("detection", "shape", "texture", "atlas", "export")
+                      if k in res.timings)
+    say(f"done in {res.timings['total']:.1f} s ({split})")
     return final

@@ -224,9 +224,14 @@ def test_build_without_annotations_detects_writes_and_keeps_the_points(tmp_path)
     from recon.example import EXAMPLE_DIR
 
     front, side = EXAMPLE_DIR / "front.jpg", EXAMPLE_DIR / "side.jpg"
-    said = []
-    paths = run_build(front, side, None, tmp_path / "a", texture_size=256, progress=said.append)
+    said, built = [], []
+    paths = run_build(front, side, None, tmp_path / "a", texture_size=256, progress=said.append, result=built)
     found = read_fdp_json(paths["annotations"])
+    # The time split: each step's seconds, within the whole run's.
+    t = built[0].timings
+    steps = [t[k] for k in ("detection", "shape", "texture", "export")]
+    assert all(s > 0 for s in steps) and sum(steps) <= t["total"] + 1e-6
+    assert any(m.startswith("done in") and "detection" in m and "export" in m for m in said)
     assert paths["annotations"] == tmp_path / "a" / "annotations.fdp.json" and found.metadata["reviewed"] is False
     assert (tmp_path / "a" / "head.glb").exists()
     assert any("recon annotate" in m and "--fdp" in m for m in said)
