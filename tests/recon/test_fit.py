@@ -7,7 +7,7 @@ from PIL import Image
 from mpeg4 import FEATURE_POINTS, InputError
 from mpeg4.generic_head import load_generic_head
 from mpeg4.io import FdpFile, ViewAnnotation, load_head, write_fdp_json
-from recon.shape.fit import run_fit
+from recon.shape.fit import fit_head, run_fit
 
 
 def _views(points, size=(800, 1000), k=2500.0):
@@ -51,12 +51,19 @@ def test_fit_recovers_the_feature_points(tmp_path, person, validate_gltf):
     marked = [i for i in truth if sources[i] in ("front+side", "mirror") and i not in loose]
     single = [i for i in truth if sources[i] in ("front", "side") and i not in loose]
     assert len(marked) > 40 and len(single) > 5
-    got = np.array([head.fp_position(i) for i in marked])
-    want = np.array([truth[i] for i in marked])
-    err = got - want
-    err -= err.mean(axis=0) * [0, 1, 1]  # the photos fix no y/z origin
-    assert np.abs(err).max() < 1e-6
-    off = (got - want).mean(axis=0)
+    # The DFFD pins its points exactly (checked with the lids left as the start has them);
+    # by default the lids are then posed by the head's sculpted eye shapes
+    # (recon.shape.lids.settle_lids), which carry the points round the eyes a fraction of a
+    # millimetre (the margins themselves are not pinned: their heights are settled).
+    bare, _ = fit_head(fdp, ipd_mm=ipd, neutral_lids=False)
+    for built, tol in ((bare, 1e-6), (head, 0.5e-3)):
+        got = np.array([built.fp_position(i) for i in marked])
+        want = np.array([truth[i] for i in marked])
+        err = got - want
+        err -= np.median(err, axis=0) * [0, 1, 1]  # the photos fix no y/z origin
+        assert np.abs(err).max() < tol
+    assert np.abs(head.metadata["fit"]["lids"]["left"]["settled_mm"]).max() < 0.5
+    off = np.median([head.fp_position(i) - truth[i] for i in marked], axis=0)
     for i in single:
         assert np.linalg.norm(head.fp_position(i) - off * [0, 1, 1] - truth[i]) < 5e-3
     for i in ("3.5", "3.6"):
