@@ -238,6 +238,26 @@ class Initialisation:
     report: dict = field(default_factory=dict)
 
 
+def _detect_checked(detect: Callable, front, side) -> FdpFile:
+    """``detect(front, side)``; when the side photo's facing is too unsure for ``recon build``
+    to take, detection again with the better guess, marked unsure: the page shows the facing
+    with its confidence and turns the points round at a key (:mod:`recon.annotate.turn`)."""
+    from recon.landmarks.facing import UnsureFacing
+
+    try:
+        return detect(os.fspath(front), os.fspath(side))
+    except UnsureFacing as e:
+        found = detect(os.fspath(front), os.fspath(side), side_facing=e.found.facing)
+        meta = found.metadata.setdefault("landmarks", {})
+        meta["side_facing"] = {"facing": e.found.facing, "confidence": round(e.found.confidence, 3),
+                               "votes": {k: round(v, 3) for k, v in e.found.votes.items()}, "given": False,
+                               "unsure": True}
+        meta.setdefault("warnings", []).append(
+            f"the side photo's facing is unsure ({e.found.describe()}): check that the nose points "
+            f"{e.found.facing}, else turn the side photo's points round (T)")
+        return found
+
+
 def initial_annotation(front: str | os.PathLike, side: str | os.PathLike, fdp_path: str | os.PathLike | None = None,
                        detect: Callable | None | bool = True, layout: Mapping | None = None,
                        sizes: Mapping[str, tuple[int, int]] | None = None) -> Initialisation:
@@ -282,7 +302,7 @@ def initial_annotation(front: str | os.PathLike, side: str | os.PathLike, fdp_pa
     found = None
     if detect is not None:
         try:
-            found = detect(os.fspath(front), os.fspath(side))
+            found = _detect_checked(detect, front, side)
             if not isinstance(found, FdpFile):
                 raise TypeError(f"detect returned {type(found).__name__}, not an FdpFile")
             attach_photo_sizes(found, sizes, "automatic detection", photos)

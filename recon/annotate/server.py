@@ -31,6 +31,7 @@ PUT      /api/fdp            ``{"views": ..., "force": false}``: validate and sa
 POST     /api/complete       ``{"views": ..., "replace_guesses": false}``: missing (and guessed) points
                              placed from the generic head fitted to the others
 POST     /api/fit            ``{"views": ...}``: fit the head; a summary of the fit
+POST     /api/turn           ``{"views": ...}``: the side photo's points placed again for the other facing
 GET      /api/head.glb       the last fitted head (``model/gltf-binary``)
 =======  ==================  ==========================================================
 
@@ -308,6 +309,10 @@ def create_app(session: AnnotationSession | MeshSession, token: str, max_body: i
         views = _views_of(body, ("views", "replace_guesses"))
         return JSONResponse(await run_in_threadpool(session.complete, views, body.get("replace_guesses") is True))
 
+    async def turn(request: Request):
+        views = _views_of(await _json_body(request))
+        return JSONResponse(await run_in_threadpool(session.turn, views))
+
     async def fit(request: Request):
         views = _views_of(await _json_body(request))
         return JSONResponse(await run_in_threadpool(session.fit, views))
@@ -336,7 +341,8 @@ def create_app(session: AnnotationSession | MeshSession, token: str, max_body: i
         own = [Route("/api/mesh.glb", mesh)]
     else:
         own = [Route("/api/photo/{view}", photo), Route("/api/complete", complete, methods=["POST"]),
-               Route("/api/fit", fit, methods=["POST"]), Route("/api/head.glb", head)]
+               Route("/api/fit", fit, methods=["POST"]), Route("/api/head.glb", head),
+               Route("/api/turn", turn, methods=["POST"])]
     routes = common[:-1] + own + common[-1:]
     middleware = [Middleware(TrustedHostMiddleware, allowed_hosts=list(HOSTS)),
                   Middleware(_Guard, token=token, max_body=max_body)]

@@ -249,6 +249,7 @@ class AnnotationSession:
             raise InputError("expected an annotation file, found a folder", where=self.fdp_path,
                              fix="give a file name such as person.fdp.json")
         self._layout = None
+        self._detect = detect
         self._lock = threading.Lock()
         self._ready = threading.Event()
         self._failure: BaseException | None = None
@@ -307,7 +308,9 @@ class AnnotationSession:
                      "exists": self._disk is not None, "saved_at": self.saved_at,
                      "backup": os.fspath(self.backup_path)},
             "views": self.views_json(self.views),
-            "initialisation": {"source": self.initialisation.source, "message": self.initialisation.message},
+            "initialisation": {"source": self.initialisation.source, "message": self.initialisation.message,
+                               "warnings": self._base.metadata.get("landmarks", {}).get("warnings", [])},
+            "side_facing": self.side_facing,
             "catalogue": [{"id": i, "group": fp.group, "side": fp.side, "front": fp.front,
                            "side_view": fp.side_view, "mirror": fp.mirror, "description": fp.description}
                           for i, fp in ((i, FEATURE_POINTS[i]) for i in FP_IDS)],
@@ -419,7 +422,34 @@ class AnnotationSession:
             self.saved_at = self.fdp_path.stat().st_mtime
         return {"views": self.views_json(self.views), "saved_at": self.saved_at}
 
+    @property
+    def side_facing(self) -> dict | None:
+        """Where the nose points in the side photo as detection read it (``facing``,
+        ``confidence``, ``given``, ``unsure``; ``turned`` once the user turned the points round);
+        None when the points did not come from detection."""
+        return self._base.metadata.get("landmarks", {}).get("side_facing")
+
     # --- help with the points -----------------------------------------------------
+    def turn(self, data) -> dict:
+        """The page's points with the side photo's placed again for the other facing
+        (:func:`recon.annotate.turn.turn_side`: detection told the facing, else mirrored)."""
+        from .placement import detector
+        from .turn import turn_side
+
+        self.wait_ready()
+        views = self.parse_views(data)
+        detect = self._detect
+        if detect is True:
+            detect = detector()[0]
+        elif not callable(detect):
+            detect = None
+        sizes = {n: (p.width, p.height) for n, p in self.photos.items()}
+        turned, report = turn_side(views, {n: p.path for n, p in self.photos.items()}, sizes, self.layout(), detect)
+        with self._lock:
+            meta = self._base.metadata.setdefault("landmarks", {})
+            meta["side_facing"] = {"facing": report["facing"], "turned": True, "given": True}
+        return {"views": self.views_json(turned), "side_facing": self.side_facing, **report}
+
     def layout(self) -> dict:
         if self._layout is None:
             self._layout = generic_layout()

@@ -25,7 +25,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["SURE", "AGREE", "Facing", "profile_facing", "silhouette_vote", "skin_vote", "detector_vote", "fit_vote"]
+from mpeg4.errors import InputError
+
+__all__ = ["SURE", "AGREE", "Facing", "UnsureFacing", "profile_facing", "silhouette_vote", "skin_vote",
+           "detector_vote", "fit_vote"]
 
 #: Below this confidence the facing is not taken without the user saying it
 #: (``--side-facing``); between it and :data:`AGREE`, taken with a warning.
@@ -68,6 +71,19 @@ class Facing:
             return f"facing {self.facing} (given)"
         votes = ", ".join(f"{k} {'left' if v > 0 else 'right'} {abs(v):.2f}" for k, v in self.votes.items())
         return f"facing {self.facing}, confidence {self.confidence:.2f} ({votes})"
+
+
+class UnsureFacing(InputError):
+    """The side photo's facing was not sure enough to take without the user saying it.
+
+    ``found`` is the :class:`Facing` read (its ``facing`` the better guess), so that a
+    caller that lets the user check it, as ``recon annotate`` does, can go on with it.
+    """
+
+    def __init__(self, found: Facing, where: str | None = None):
+        self.found = found
+        super().__init__(f"cannot tell which way the side photo faces ({found.describe()})", where=where,
+                         fix="say where the nose points in the side photo: --side-facing left or --side-facing right")
 
 
 def silhouette_vote(mask: np.ndarray) -> float:

@@ -127,7 +127,7 @@ def register_profile(image: np.ndarray, front: ViewPoints, front_height: int,
         ``image`` and ``mask`` turned nose-left, ``flipped`` (bool), ``distance`` (the
         outline's distance map), ``facing`` (:class:`~recon.landmarks.facing.Facing`).
     """
-    from .facing import SURE, profile_facing
+    from .facing import SURE, UnsureFacing, profile_facing
 
     mask = _checked(image, where, mask)
 
@@ -147,8 +147,7 @@ def register_profile(image: np.ndarray, front: ViewPoints, front_height: int,
     colours = front.extras.get("colours")
     found = profile_facing(image, mask, costs, skin=colours[0] if colours else None, given=facing)
     if found.confidence < SURE:
-        raise InputError(f"cannot tell which way the side photo faces ({found.describe()})", where=where,
-                         fix="say where the nose points in the side photo: --side-facing left or --side-facing right")
+        raise UnsureFacing(found, where=where)
     flip = found.facing == "right"
     if flip:
         # Everything below works on the photo turned nose-left; segmenting it again there

@@ -257,3 +257,33 @@ def test_drag_guides_mirror_undo_redo_save_reload(photos, browser, tmp_path, ann
     finally:
         annotate_cli.stop(proc)
     assert proc.returncode == 0, proc.stderr.read()
+
+
+def test_the_page_shows_the_side_facing_and_turns_the_side_round(photos, browser, tmp_path, annotate_cli):
+    pytest.importorskip("mediapipe")
+    proc, url = annotate_cli.start(*photos, "--fdp", tmp_path / "t.fdp.json")
+    try:
+        page = browser.new_page(viewport={"width": 1400, "height": 860})
+        errors = []
+        page.on("pageerror", lambda e: errors.append(str(e)))
+        page.goto(url)
+        page.wait_for_selector("body[data-ready=true]", timeout=30000)
+        shown = page.inner_text("#side-facing")
+        assert "nose points left" in shown and "confidence" in shown, shown
+        before = {i: np.array(p) for i, p in _points(page)["side"]["points"].items()}
+        ear = lambda pts: np.mean([p[0] for i, p in pts.items() if i.startswith("10.")])  # noqa: E731
+        assert before["9.3"][0] < ear(before)
+
+        page.keyboard.press("t")
+        page.wait_for_selector("#side-facing[data-facing=right]", timeout=30000)
+        assert "turned round by you" in page.inner_text("#side-facing")
+        after = {i: np.array(p) for i, p in _points(page)["side"]["points"].items()}
+        assert after["9.3"][0] > ear(after)
+        page.screenshot(path=ARTIFACTS / "annotate_turned.png")
+
+        page.keyboard.press("Control+z")  # one undo turns them back
+        back = {i: np.array(p) for i, p in _points(page)["side"]["points"].items()}
+        assert set(back) == set(before) and all(np.allclose(back[i], before[i]) for i in before)
+        assert not errors, errors
+    finally:
+        annotate_cli.stop(proc)

@@ -32,7 +32,8 @@ class App extends Editor {
     }
     this._wire();
     bindShortcuts(this);
-    this._showInitialisation();
+    this._showInitialisation((state.initialisation.warnings ?? []).map((w) => ` Warning: ${w}.`).join(""));
+    this._showFacing(state.side_facing);
     this.render();
     this._showFileStatus();
   }
@@ -104,8 +105,8 @@ class App extends Editor {
     box.appendChild(p);
   }
 
-  _showInitialisation() {
-    super._showInitialisation(this.viewNames.map((v) => this.state.photos[v].note ? ` ${v} photo: ${this.state.photos[v].note}.` : "").join(""));
+  _showInitialisation(extra = "") {
+    super._showInitialisation(this.viewNames.map((v) => this.state.photos[v].note ? ` ${v} photo: ${this.state.photos[v].note}.` : "").join("") + extra);
   }
 
   // --- edits -------------------------------------------------------------------------
@@ -228,6 +229,33 @@ class App extends Editor {
     } catch (e) { this.error(e); }
   }
 
+  // --- the side photo's facing ------------------------------------------------------
+  /** Where the nose points in the side photo, as read (with its confidence) or as turned. */
+  _showFacing(f) {
+    const box = $("side-facing");
+    const facing = f?.facing ?? (this.visibleSide() === "L" ? "left" : "right");
+    let how = "from the points";
+    if (f?.turned) how = "turned round by you";
+    else if (f?.given) how = "given";
+    else if (f && f.confidence != null) how = `read with confidence ${f.confidence.toFixed(2)}${f.unsure ? ", unsure: check it" : ""}`;
+    box.textContent = `side photo: the nose points ${facing} (${how})`;
+    box.dataset.facing = facing;
+    box.dataset.unsure = String(Boolean(f?.unsure));
+  }
+
+  /** The side photo's points placed again for the other facing (a profile read backwards). */
+  async turnSide() {
+    try {
+      this.flash("turning the side photo's points round…");
+      const r = await this.api.send("POST", "/api/turn", { views: this.store.toJSON() });
+      this.store.commit(`turn the side photo round (nose ${r.facing})`, (v) => { v.side = r.views.side; });
+      this._showFacing(r.side_facing);
+      this.render();
+      this.flash(`The side photo's points now face ${r.facing}: ${r.how}` + (r.placed.length
+        ? `; ${r.placed.length} placed from the generic head.` : ".") + " Undo (Ctrl+Z) turns them back.");
+    } catch (e) { this.error(e); }
+  }
+
   // --- the 3D preview ----------------------------------------------------------------
   async fit3d() {
     const panel = $("preview3d");
@@ -268,6 +296,7 @@ class App extends Editor {
     on("btn-mirror", () => this.toggleMirror());
     on("btn-fill", () => this.placeGuesses());
     on("btn-fit", () => this.fit3d());
+    on("btn-turn", () => this.turnSide());
     on("btn-close-3d", () => { $("preview3d").hidden = true; });
     $("help").appendChild(helpTable(this.mode));
   }

@@ -12,7 +12,8 @@ export class MeshApp extends Editor {
     super(api, state, ["mesh"]);
     this.mode = "mesh";
     this.inside = new Set(state.inside);
-    for (const id of ["view-front", "view-side", "btn-mirror", "btn-labels", "btn-fill", "btn-fit"]) $(id).hidden = true;
+    for (const id of ["view-front", "view-side", "btn-mirror", "btn-labels", "btn-fill", "btn-fit", "btn-turn",
+      "side-facing"]) $(id).hidden = true;
     const box = $("view-mesh");
     box.hidden = false;
     const m = state.mesh;

@@ -22,6 +22,8 @@ export const SHORTCUTS = [
   { keys: ["L"], what: "labels on or off", run: (app) => app.toggleLabels() },
   { photos: true, keys: ["G"], what: "place the missing points, and move those still guessed, by the generic head fitted to the points you placed",
     run: (app) => app.placeGuesses() },
+  { photos: true, keys: ["T"], what: "turn the side photo's points round: placed again with the nose the other way (a profile read backwards)",
+    run: (app) => app.turnSide() },
   { photos: true, keys: ["P"], what: "fit the head and show it in 3D", run: (app) => app.fit3d() },
   { keys: ["Escape"], what: "stop placing a point; clear the selection", run: (app) => app.cancel() },
   { keys: ["?"], what: "this help", run: (app) => app.toggleHelp() },
