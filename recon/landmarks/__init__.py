@@ -53,7 +53,8 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
         ``views["front"]`` and ``views["side"]`` with points and confidences;
         ``metadata["landmarks"]``: per view, the source of each point
         (:data:`SOURCES`; on the side photo all are ``silhouette`` or ``rule``: its points
-        are the front photo's mesh placed by the side photo's silhouette), the side the side
+        are the front photo's mesh placed by the side photo's silhouette), per view the
+        skull points whose outline is hair (``under_hair``, :mod:`recon.shape.hair`), the side the side
         photo shows, which way it faces and how sure that is (``side_facing``, see
         :mod:`recon.landmarks.facing`), which of the eye, lips and ear the side photo was
         seen to show, and ``warnings`` (a facing taken with some cues against it).
@@ -67,8 +68,9 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
         f = detect_front(front, front_name, front_mask)
         view = ViewAnnotation(image=None, width=int(front.shape[1]), height=int(front.shape[0]),
                               points=dict(f.points), confidence=dict(f.confidence))
-        return FdpFile(views={"front": view}, metadata={"landmarks": {"method": _METHOD,
-                                                                      "source": {"front": dict(f.source)}}})
+        return FdpFile(views={"front": view}, metadata={"landmarks": {
+            "method": _METHOD, "source": {"front": dict(f.source)},
+            "under_hair": {"front": list(f.extras.get("under_hair", []))}}})
     front_mask, side_mask = head_masks([front, side])
     f = detect_front(front, front_name, front_mask)
     s, shown = detect_side(side, f, front.shape[0], side_name, side_mask, facing=side_facing)
@@ -83,6 +85,8 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
                                           "votes": {k: round(v, 3) for k, v in facing.votes.items()},
                                           "given": facing.given},
                           "side_parts_seen": [k for k in ("eye", "lips", "ear") if s.extras.get(k) is not None],
+                          "under_hair": {"front": list(f.extras.get("under_hair", [])),
+                                         "side": list(s.extras.get("under_hair", []))},
                           "source": {"front": dict(f.source), "side": dict(s.source)}}}
     if not facing.given and (facing.confidence < AGREE or facing.against):
         meta["landmarks"]["warnings"] = [

@@ -388,6 +388,8 @@ def detect_front(image: np.ndarray, where: str = "front photo", mask: np.ndarray
     # Top of the skull: under the hair, whose thickness a photo does not show.
     front.put("11.4", top, 0.35, "rule")
     front.extras["colours"] = (skin, hair_model)
+    # Where the crown is hair the outline there is the hair's (recon.shape.hair).
+    front.extras["under_hair"] = ["11.4"] if hair_model is not None else []
     _ears(front, lab, lm, pts, skin, hair_model)
     return front
 

@@ -205,6 +205,14 @@ def _side_colours(lab: np.ndarray, mask: np.ndarray, cheek: np.ndarray, y_top: f
     return skin, ColourModel.fit(lab_c)
 
 
+def _is_hair(lab: np.ndarray, mask: np.ndarray, at, ipd: float, skin, hair) -> bool:
+    """Whether the head is mostly hair-coloured in a patch at ``at`` (pixels)."""
+    from .colour import hair_share, sample_patches
+
+    colours = sample_patches(lab, np.array([at], float), max(2, int(0.03 * ipd)), mask)
+    return len(colours) >= 5 and hair_share(colours, skin, hair) > 0.5
+
+
 def _generic_ear(where: dict[str, np.ndarray], ipd: float) -> dict[str, np.ndarray]:
     """The generic head's ear outline (:data:`~recon.landmarks.side_parts.EAR_OUTLINE`)
     as a side photo nose-left shows it, ``ipd`` pixels between the pupils, centred where
@@ -364,9 +372,13 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
     # The back of the skull: on the back of the silhouette, as far down from the top as
     # the generic head has it between the top and under the nose.
     r = int(np.clip(round(y_top + _back_share() * (out.points["9.15"][1] - y_top)), rows[0], rows[-1]))
+    under_hair = ["11.4"] if hair is not None else []
     if np.isfinite(back[r]):
         out.put("11.6", (back[r], r), 0.6, "silhouette")
-    out.extras.update(eye=eye, lips=lips, ear=ear)
+        if _is_hair(lab, mask, (back[r] - 0.06 * ipd, r), ipd, skin, hair):
+            under_hair.append("11.6")
+    # Where the outline is hair the skull lies under it (recon.shape.hair).
+    out.extras.update(eye=eye, lips=lips, ear=ear, under_hair=under_hair)
     # Back to the photo's own orientation.
     if flip:
         flipped = ViewPoints(mask=mask[:, ::-1], ipd_px=out.ipd_px, extras=out.extras)

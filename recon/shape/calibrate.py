@@ -20,7 +20,7 @@ Coordinates out: metres, the generic head's MPEG-4 neutral frame (+x the face's 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,6 +30,7 @@ from mpeg4.errors import InputError
 from mpeg4.head import Head
 
 from .deform import bounding_controls, dffd, fit_similarity
+from .hair import skull_normals, skull_offset
 
 __all__ = ["DEFAULT_IPD_MM", "CORE_GROUPS", "is_core", "Calibration", "HeightsDisagree", "calibrate"]
 
@@ -148,7 +149,7 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
               ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
               front_size: tuple[int, int] | None = None, side_size: tuple[int, int] | None = None,
               height_tol_mm: float = 8.0, confidence: Mapping[str, Mapping[str, float]] | None = None,
-              drop_outliers: bool = False) -> Calibration:
+              drop_outliers: bool = False, under_hair: Collection[str] = ()) -> Calibration:
     """3D feature points from 2D points marked on a front and a side photo.
 
     With ``drop_outliers`` (points found automatically, not reviewed), a point whose
@@ -181,7 +182,13 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
         ``{"front": {id: c}, "side": {id: c}}`` with c in [0, 1]: weights of the height fit,
         and which view loses a disagreeing point (the less sure one; both when equal).
     drop_outliers : bool
-        Drop disagreeing points instead of failing (see above).
+        Drop disagreeing points instead of failing (see above); the unreviewed skull and
+        ear points are then also brought within :data:`PRIOR_SLACK` of where the face's
+        points put them (``"skull prior"`` in :attr:`Calibration.source`).
+    under_hair : collection of str
+        With ``drop_outliers``: the skull points (:data:`recon.shape.hair.UNDER_HAIR`)
+        whose outline in either photo is hair, not skin; the skull is placed under it
+        (:func:`recon.shape.hair.skull_offset`, ``"under hair"`` in the source).
 
     Returns
     -------
@@ -210,7 +217,7 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
             continue
         cal.dropped = dropped
         if drop_outliers:
-            _skull_prior(cal, generic)
+            _skull_prior(cal, generic, under_hair)
         return cal
 
 
@@ -223,19 +230,32 @@ PRIOR_SLACK = {**{i: 0.012 for i in ("11.4", "11.5", "11.6")},
                **{i: 0.015 for i in FP_IDS if FEATURE_POINTS[i].group == 10}}
 
 
-def _skull_prior(cal: Calibration, generic: Head) -> None:
+def _skull_prior(cal: Calibration, generic: Head, under_hair: Collection[str] = ()) -> None:
     """Bring unreviewed skull and ear points (:data:`PRIOR_SLACK`) within their bound of the
-    generic head carried by the face's points, recording those moved as ``"skull prior"``."""
+    generic head carried by the face's points, recording those moved as ``"skull prior"``;
+    the skull points in ``under_hair`` go under the hair (:mod:`recon.shape.hair`)."""
     g = {i: generic.fp_position(i) for i in generic.feature_points}
     face = [i for i in FP_IDS if FEATURE_POINTS[i].group not in (10, 11) and i in g
             and cal.source.get(i) not in (None, "generic")]
     if len(face) < 4:
         return
     guess = _generic_guess(g, face, np.array([cal.points[i] for i in face]))
+    normals = skull_normals(generic) if under_hair else {}
     for i, slack in PRIOR_SLACK.items():
         if i not in guess or cal.source.get(i) == "generic":
             continue
         d = cal.points[i] - guess[i]
+        if i in under_hair and i in normals:
+            # Along the normal the outline is hair over the skull; across it, as for any point.
+            n = normals[i]
+            out = float(d @ n)
+            across = d - out * n
+            k = float(np.linalg.norm(across))
+            if k > slack:
+                across *= slack / k
+            cal.points[i] = guess[i] + across + skull_offset(out * 1000.0) / 1000.0 * n
+            cal.source[i] = "under hair"
+            continue
         n = float(np.linalg.norm(d))
         if n > slack:
             cal.points[i] = guess[i] + d * (slack / n)

@@ -24,7 +24,8 @@ from .identity import POINT_SD_MM
 #: Spread (mm) of detected 3D points about what the identity model can express.
 DETECTED_SD_MM = 4.0
 
-__all__ = ["fit_head", "fit_head_front", "has_side", "run_fit", "image_size", "attach_photo_sizes", "require_views"]
+__all__ = ["fit_head", "fit_head_front", "has_side", "under_hair", "run_fit", "image_size", "attach_photo_sizes",
+           "require_views"]
 
 
 def image_size(path: str | os.PathLike) -> tuple[int, int]:
@@ -121,7 +122,8 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
             drop_outliers = fdp.metadata.get("reviewed") is False
         cal = calibrate(views["front"].points, views["side"].points, generic, ipd_mm=ipd_mm, focal_px=focal_px,
                         front_size=size["front"], side_size=size["side"], height_tol_mm=height_tol_mm,
-                        confidence={n: v.confidence for n, v in views.items()}, drop_outliers=drop_outliers)
+                        confidence={n: v.confidence for n, v in views.items()}, drop_outliers=drop_outliers,
+                        under_hair=under_hair(fdp))
     except InputError as e:
         raise InputError(e.what, where=f"{where}, {e.where}" if e.where else where, fix=e.fix) from None
     goal = {i: p for i, p in cal.points.items() if cal.source[i] != "generic"}
@@ -137,6 +139,13 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
         height_residual_mm={k: round(v, 3) for k, v in cal.height_residual_mm.items()}, dropped_points=cal.dropped,
         lids=_lids_built(head, lids)))
     return head, cal
+
+
+def under_hair(fdp) -> set[str]:
+    """The skull points whose outline the detection found to be hair in either photo
+    (``metadata["landmarks"]["under_hair"]``, see :mod:`recon.shape.hair`)."""
+    found = (fdp.metadata.get("landmarks") or {}).get("under_hair") or {}
+    return {i for view in ("front", "side") for i in (found.get(view) or ())}
 
 
 def _pose_lids(start: Head, goal: dict, front: dict, pose: bool) -> tuple[Head, dict, dict | None]:
@@ -241,7 +250,8 @@ def fit_head_front(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD
     try:
         ff = fit_front(view.points, view.width, view.height, generic, ipd_mm=ipd_mm, focal_px=focal_px,
                        estimate_focal=estimate_focal, confidence=view.confidence or None,
-                       drop_outliers=fdp.metadata.get("reviewed") is False)
+                       drop_outliers=fdp.metadata.get("reviewed") is False,
+                       under_hair=under_hair(fdp) if fdp.metadata.get("reviewed") is False else ())
     except InputError as e:
         raise InputError(e.what, where=f"{where}, views.front", fix=e.fix) from None
     start, pinned, lids = _pose_lids(ff.head, ff.points, view.points, neutral_lids)

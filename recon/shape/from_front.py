@@ -22,7 +22,7 @@ References
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -156,7 +156,8 @@ def _fit_one(front, ids, weights, generic, model, width, height, focal_px, point
 def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic: Head | None = None,
               model: IdentityModel | None = None, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
               estimate_focal: bool = True, confidence: Mapping[str, float] | None = None,
-              point_sd_mm: float = POINT_SD_MM, drop_outliers: bool = False, where: str = "front photo") -> FrontFit:
+              point_sd_mm: float = POINT_SD_MM, drop_outliers: bool = False, where: str = "front photo",
+              under_hair: Collection[str] = ()) -> FrontFit:
     """Fit the identity model to the points marked on a front photo.
 
     Parameters
@@ -184,6 +185,10 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
         Leave out, one at a time and the worst first, points the fit misses by more than
         :data:`OUTLIER_SDS` spreads (weighted by their confidence), except the face's core
         (eyes, nose, mouth, chin): for detected points nobody has checked.
+    under_hair : collection of str
+        Skull points (:data:`recon.shape.hair.UNDER_HAIR`) whose marked place is the
+        hair's outline: left out of the fit, then placed under it
+        (:func:`recon.shape.hair.skull_offset`; source ``"under hair"``).
 
     Returns
     -------
@@ -196,6 +201,8 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
     model = load_identity_model() if model is None else model
     model.check(generic)
     ids = _usable(front, generic)
+    hair = [i for i in ids if i in set(under_hair)]
+    ids = [i for i in ids if i not in hair]
     if len(ids) < 8:
         raise InputError(f"only {len(ids)} feature points are marked on the front photo; the identity model needs "
                          f"at least 8 spread over the face", where=where,
@@ -245,6 +252,8 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
     source = {i: "model" for i in pos}
     for i, m in zip(ids, moved):
         pos[i], source[i] = m, "front"
+    for i, p in _under_hair(front, hair, pos, cam.camera, generic).items():
+        pos[i], source[i] = p, "under hair"
     # Photos carry no scale: the pupils' distance sets it.
     k = ipd_mm * 1e-3 / float(np.linalg.norm(pos["3.5"] - pos["3.6"]))
     head = head.with_vertices({n: p.vertices * k for n, p in head.parts.items()})
@@ -257,6 +266,25 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
     focal_from = "given" if best == "given" else ("orthographic" if focal is None else "estimated")
     return FrontFit(head, pos, source, c, cam, focal, focal_from, rms, cost,
                     {key: round(v.cost, 2) for key, v in fits.items()}, dropped)
+
+
+def _under_hair(front: Mapping, ids: list[str], pos: dict, camera, generic: Head) -> dict[str, np.ndarray]:
+    """The skull points ``ids`` under the hair whose outline the photo shows at their marked
+    pixels: the fitted model's point, moved across the line of sight as the others are, but
+    along the skull's normal only by what hair cannot explain (:mod:`recon.shape.hair`)."""
+    from .hair import skull_normals, skull_offset
+
+    normals = skull_normals(generic)
+    out = {}
+    for i in ids:
+        if i not in normals:
+            continue
+        x = pos[i]
+        p, J = _projection_jacobian(camera, x[None])
+        move = np.linalg.pinv(J[0]) @ (np.asarray(front[i], float) - p[0])
+        n = normals[i]
+        out[i] = x + (move - (move @ n) * n) + skull_offset(float(move @ n) * 1000.0) / 1000.0 * n
+    return out
 
 
 def _scaled_camera(fitted, k: float):
