@@ -177,6 +177,8 @@ def measure_view(fig: dict, pics: dict, head, cam, image: np.ndarray, pts: dict,
     mask, albedo = rp.rendered_mask(head, cam, textured=True)
     region = rp.head_region(image)
     fig[f"point_agreement_{view}_ipd_pct"] = rp.point_agreement(head, cam, pts)
+    misses = sorted(rp.point_misses(head, cam, pts).items(), key=lambda kv: -kv[1])[:4]
+    fig[f"point_agreement_worst_{view}"] = ", ".join(f"{i} {d:.0f} %" for i, d in misses)
     chin = pts.get("2.1", [0, image.shape[0]])[1]
     fig[f"silhouette_iou_{view}"] = rp.silhouette_iou(region, mask, chin)
     if view == "side":

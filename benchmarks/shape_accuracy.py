@@ -14,9 +14,12 @@ of painted ICT identities (``recon.evaluate.synthetic``), clean and from the har
 (``hard_pair``: hair with volume, skin types I–VI, clothes, glasses, busy backgrounds), go
 through the automatic route — ``recon.landmarks.detect_images``, then
 ``recon.shape.fit.fit_head`` as ``recon build`` runs it (unreviewed points, outliers
-dropped; the true interpupillary distance and focal length given) — and the head is measured
-against the identity the same way: over the face, and over the top of the skull (above the
-middle of the hairline, 11.1), which the hard set's hair hides; per hair style.
+dropped; the true interpupillary distance and focal length given), then the profile moved
+onto the side photo's outline (``recon.shape.outline.match_profile``, the side camera
+fitted to the points) — and the head is measured against the identity the same way: over
+the face, over the top of the skull (above the middle of the hairline, 11.1), which the
+hard set's hair hides, per hair style, and over the face's midline from the brow to the
+chin before and after the profile step (``_profile_points_only`` and ``_profile``).
 
 Run: ``python3 benchmarks/shape_accuracy.py [--identities 20] [--photos 6] [--heatmap out.png]``
 Prints ``name: value unit`` lines; the last line is a summary.
@@ -153,15 +156,21 @@ def from_photos(generic, people: int) -> str:
     from mpeg4.errors import InputError
     from recon.evaluate.synthetic import hard_pair, synthetic_pair
     from recon.landmarks import detect_images, mediapipe_available
+    from recon.landmarks.silhouette import head_masks
     from recon.shape.fit import fit_head
+    from recon.shape.outline import match_profile
+    from recon.texture.cameras import fit_camera
 
     if not mediapipe_available():
         print("photos: skipped (mediapipe is not installed)")
         return ""
-    skull = generic.skin.vertices[:, 1] >= generic.fp_position("11.1")[1]
+    v = generic.skin.vertices
+    skull = v[:, 1] >= generic.fp_position("11.1")[1]
+    profile = ((np.abs(v[:, 0]) < 0.001) & (v[:, 1] < generic.fp_position("4.1")[1])
+               & (v[:, 1] > generic.fp_position("2.1")[1]) & (v[:, 2] > generic.fp_position("3.5")[2]))
     out = {}
     for name, make in (("clean", synthetic_pair), ("hard", hard_pair)):
-        errs = {"face": [], "skull_top": []}
+        errs = {"face": [], "skull_top": [], "profile_points_only": [], "profile": []}
         by_hair = {}
         failed = 0
         for seed in range(people):
@@ -177,8 +186,17 @@ def from_photos(generic, people: int) -> str:
                 print(f"photos {name} person {seed}: not built ({e})")
                 continue
             ids = [i for i, s in cal.source.items() if s != "generic"]
-            off = np.mean([head.fp_position(i) - truth.fp_position(i) for i in ids], axis=0)
-            err = np.linalg.norm(head.skin.vertices - off - truth.skin.vertices, axis=1) * 1000
+
+            def error(h):
+                off = np.mean([h.fp_position(i) - truth.fp_position(i) for i in ids], axis=0)
+                return np.linalg.norm(h.skin.vertices - off - truth.skin.vertices, axis=1) * 1000
+
+            errs["profile_points_only"].append(error(head)[profile])
+            view = fdp.views["side"]
+            cam = fit_camera(head.fp_positions(), view.points, view.width, view.height, focal_px=pair.focal_px)
+            head = match_profile(head, head_masks([pair.side])[0], cam.camera, view.points)
+            err = error(head)
+            errs["profile"].append(err[profile])
             errs["face"].append(err[FACE])
             errs["skull_top"].append(err[skull])
             hair = pair.look.hair if pair.look else "painted"

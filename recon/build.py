@@ -37,7 +37,7 @@ from mpeg4.head import Head
 from mpeg4.io import read_fdp_json
 
 from .shape.calibrate import DEFAULT_IPD_MM
-from .texture.cameras import FittedCamera, fit_camera
+from .texture.cameras import FittedCamera, check_view_cameras, fit_camera, fit_view_camera
 from .shape.fit import attach_photo_sizes, fit_head, fit_head_front, has_side, require_views
 from .publish import publish
 from .detection import DETECTED_NAME, correction_hint, detect_annotations
@@ -49,13 +49,6 @@ __all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "run_build", "
 
 #: Texture size (pixels, square) unless asked otherwise.
 DEFAULT_TEXTURE_SIZE = 2048
-
-# How far (degrees) a fitted camera may look away from the direction its photo should show.
-_MAX_VIEW_ERROR_DEG = 35.0
-# Largest RMS distance between marked points and the fitted camera's projection, as a
-# share of the interpupillary distance in that photo.
-_MAX_RESIDUAL_SHARE = 0.12
-
 
 @dataclass
 class PhotoPair:
@@ -159,76 +152,11 @@ class BuildResult:
     timings: dict[str, float]
 
 
-def _fit_view_camera(points3d, view, name: str, focal_px, where: str, cal, unreviewed: bool, say) -> FittedCamera:
-    """The photo's camera from its points, without those the calibration dropped from it.
-
-    For unreviewed (detected) points, a point the camera cannot explain (off by more than
-    the share of the IPD :func:`_check_cameras` allows) is dropped too, the worst first,
-    unless it is one of the face's core points, and listed in ``cal.dropped``.
-    """
-    from .shape.calibrate import is_core
-    from mpeg4.catalogue import FEATURE_POINTS
-
-    gone = {i for i, d in cal.dropped.items() if d["view"] in (name, "both")}
-    own = {(FEATURE_POINTS[i].mirror or i) if name == "side" and i not in view.points else i for i in gone}
-    pixels = {i: p for i, p in view.points.items() if i not in gone and i not in own}
-    while True:
-        cam = fit_camera(points3d, pixels, view.width, view.height, focal_px=focal_px, where=where)
-        if not unreviewed:
-            return cam
-        limit = _MAX_RESIDUAL_SHARE * _view_scale(view)
-        worst = max((i for i in cam.residual_px
-                     if not is_core(i)),
-                    key=lambda i: cam.residual_px[i], default=None)
-        if cam.rms_px <= limit or worst is None or cam.residual_px[worst] <= limit:
-            return cam
-        say(f"left out {worst} on the {name} photo: the camera misses it by {cam.residual_px[worst]:.0f} px")
-        cal.dropped[worst] = {"view": name, "camera_px": round(float(cam.residual_px[worst]), 1)}
-        del pixels[worst]
-
-
-def _view_scale(view) -> float:
-    """Pixels of the IPD a photo shows (the pupils apart, or the eye to the ear in a profile)."""
-    pts = [view.points[i] for i in ("3.5", "3.6") if i in view.points]
-    if len(pts) == 2:
-        return float(np.linalg.norm(pts[0] - pts[1]))
-    b = [view.points[i] for i in ("10.9", "10.10", "10.7", "10.8") if i in view.points]
-    return float(np.linalg.norm(pts[0] - b[0])) if pts and b else max(view.width or 1, view.height or 1) * 0.1
-
-
-def _check_cameras(cams: dict[str, FittedCamera], pair: PhotoPair, where: str) -> None:
-    """Refuse annotations that no plausible front/side camera explains (a profile passed
-    as the front photo, points labelled on the wrong photo)."""
-    for name, want, what in (("front", np.array([0.0, 0.0, 1.0]), "from the front"),
-                             ("side", None, "from the side")):
-        if name not in cams:
-            continue
-        cam = cams[name].camera
-        toward = cam.rotation[2]  # from the head towards the camera
-        if want is None:
-            angle = np.degrees(np.arccos(np.clip(abs(toward[0]), 0, 1)))
-        else:
-            angle = np.degrees(np.arccos(np.clip(toward @ want, -1, 1)))
-        if angle > _MAX_VIEW_ERROR_DEG:
-            raise InputError(f"the points marked on the {name} photo fit a camera {angle:.0f} degrees away from "
-                             f"looking {what}", where=f"{where}, views.{name}",
-                             fix=f"check that the {name} photo shows the face {what} and that its points are "
-                                 f"marked on it (not on the other photo)")
-        scale = _view_scale(pair.fdp.views[name])
-        rms = cams[name].rms_px
-        if rms > _MAX_RESIDUAL_SHARE * scale:
-            worst = sorted(cams[name].residual_px.items(), key=lambda kv: -kv[1])[:3]
-            raise InputError(f"the points marked on the {name} photo do not fit one camera (off by {rms:.0f} px on "
-                             f"average; worst " + ", ".join(f"{i} by {r:.0f} px" for i, r in worst) + ")",
-                             where=f"{where}, views.{name}",
-                             fix="move those points to where the catalogue describes them (recon annotate)")
-
-
 def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float = DEFAULT_IPD_MM,
                focal_px: float | None = None, method: str = "dffd", texture_size: int = DEFAULT_TEXTURE_SIZE,
                atlas: bool = False, blend: str = "opencv", generic: Head | None = None,
                keep_lighting: bool = False, progress: Callable[[str], None] | None = None,
-               height_tol_mm: float = 8.0) -> BuildResult:
+               height_tol_mm: float = 8.0, follow_profile: bool = True) -> BuildResult:
     """A textured head from annotated photos.
 
     Parameters
@@ -259,6 +187,10 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
         Largest disagreement of a point's height between the photos: reviewed points
         beyond it are an error, unreviewed (detected) ones are left out and listed
         (:func:`recon.shape.calibrate.calibrate`).
+    follow_profile : bool
+        Move the face's midline between the feature points onto the side photo's outline
+        from the brow to the chin (:mod:`recon.shape.outline`; needs the head segmentation,
+        mediapipe), through the shape pair's side camera.
 
     Returns
     -------
@@ -286,6 +218,8 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
             f"{height_tol_mm:g} mm: " + ", ".join(f"{i} ({d['disagreement_mm']:+.1f} mm, {d['view']} photo"
                                                f"{'s' if d['view'] == 'both' else ''})" for i, d in cal.dropped.items())
             + "; check them with recon annotate")
+    if follow_profile:
+        head = _follow_profile(head, shape, cal, focal(shape), say)
     tex_pair = texture or shape
     tex_head = head
     if texture is not None:
@@ -293,6 +227,8 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
         tex_head, tex_cal = fit_head(texture.fdp, generic=generic, ipd_mm=ipd_mm, focal_px=focal(texture),
                                      method=method, where=texture.paths.get("fdp", "fdp.json"),
                                      height_tol_mm=height_tol_mm)
+        if follow_profile:
+            tex_head = _follow_profile(tex_head, texture, tex_cal, focal(texture), say)
     times["shape"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     pts = tex_head.fp_positions()
@@ -301,12 +237,34 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     cams = {}
     for name in ("front", "side"):
         view = tex_pair.fdp.views[name]
-        cams[name] = _fit_view_camera(pts, view, name, focal(tex_pair), f"{where}, views.{name}", tex_cal,
+        cams[name] = fit_view_camera(pts, view, name, focal(tex_pair), f"{where}, views.{name}", tex_cal,
                                       tex_pair.fdp.metadata.get("reviewed") is False, say)
-    _check_cameras(cams, tex_pair, where)
+    check_view_cameras(cams, tex_pair.fdp.views, where)
     skin = texture_skin(tex_head, tex_pair.front, tex_pair.side, cams["front"], cams["side"], size=texture_size,
                         blend=blend, delight=not keep_lighting, progress=say)
     return _finish(head, skin, tex_pair, cams, atlas, texture_size, keep_lighting, times, t0, t1, say)
+
+
+def _follow_profile(head: Head, pair: PhotoPair, cal, focal_px: float | None, say) -> Head:
+    """:func:`recon.shape.outline.match_profile` onto the side photo's outline, through the
+    side camera fitted to the head's points (the head as it is when the segmentation is not
+    installed)."""
+    from .landmarks import mediapipe_available
+    from .shape.outline import match_profile
+
+    if not mediapipe_available():
+        say("the profile between the feature points is the generic head's: the side photo's outline needs "
+            "mediapipe (bash install.sh)")
+        return head
+    from .landmarks.silhouette import head_masks
+
+    where = pair.paths.get("fdp", "fdp.json")
+    camera = fit_view_camera(head.fp_positions(), pair.fdp.views["side"], "side", focal_px, f"{where}, views.side",
+                             cal, pair.fdp.metadata.get("reviewed") is False, say)
+    check_view_cameras({"side": camera}, pair.fdp.views, where)
+    say("moving the profile onto the side photo's outline")
+    (mask,) = head_masks([pair.side])
+    return match_profile(head, mask, camera.camera, pair.fdp.views["side"].points)
 
 
 def _finish(head, skin, pair, cams, atlas, texture_size, keep_lighting, times, t0, t1, say) -> BuildResult:
@@ -351,7 +309,7 @@ def _build_front_only(pair: PhotoPair, focal_px, generic, ipd_mm, method, textur
     pixels = {i: p for i, p in view.points.items() if ff.source.get(i) == "front"}
     cams = {"front": fit_camera(pts, pixels, view.width, view.height, focal_px=ff.focal_px,
                                 where=f"{where}, views.front")}
-    _check_cameras(cams, pair, where)
+    check_view_cameras(cams, pair.fdp.views, where)
     skin = texture_skin(head, pair.front, None, cams["front"], None, size=texture_size, blend=blend,
                         delight=not keep_lighting, progress=say)
     return _finish(head, skin, pair, cams, atlas, texture_size, keep_lighting, times, t0, t1, say)

@@ -28,7 +28,7 @@ from mpeg4.head import Head
 from mpeg4.preview import head_meshes
 from mpeg4.render import Camera, render
 
-__all__ = ["ipd_px", "rendered_mask", "point_agreement", "head_region", "silhouette_iou", "profile_line",
+__all__ = ["ipd_px", "rendered_mask", "point_misses", "point_agreement", "head_region", "silhouette_iou", "profile_line",
            "skin_delta_e", "relit", "BROW_IDS"]
 
 #: Eyebrow points: where the profile line starts (the highest one a photo shows).
@@ -51,15 +51,21 @@ def rendered_mask(head: Head, camera: Camera, textured: bool = False) -> tuple[n
     return np.isfinite(depth), (image if textured else None)
 
 
-def point_agreement(head: Head, camera: Camera, points: Mapping[str, np.ndarray]) -> float:
-    """RMS distance between ``points`` (FP id → pixel) and the head's feature points
+def point_misses(head: Head, camera: Camera, points: Mapping[str, np.ndarray]) -> dict[str, float]:
+    """FP id → distance between ``points`` (FP id → pixel) and the head's feature point
     projected by ``camera``, in % of the IPD the photo shows."""
     ids = [i for i in points if i in head.feature_points]
     if not ids:
-        return float("nan")
+        return {}
     proj = camera.project(np.array([head.fp_position(i) for i in ids]))
     d = np.linalg.norm(proj - np.array([points[i] for i in ids]), axis=1)
-    return float(100 * np.sqrt(np.mean(d ** 2)) / ipd_px(head, camera))
+    return dict(zip(ids, (100 * d / ipd_px(head, camera)).tolist()))
+
+
+def point_agreement(head: Head, camera: Camera, points: Mapping[str, np.ndarray]) -> float:
+    """RMS of :func:`point_misses`: the detected points against the head's, % of the IPD."""
+    d = np.array(list(point_misses(head, camera, points).values()))
+    return float(np.sqrt(np.mean(d ** 2))) if len(d) else float("nan")
 
 
 def head_region(image: np.ndarray) -> np.ndarray:

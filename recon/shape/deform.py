@@ -165,7 +165,8 @@ def rbf_deform(vertices, controls, displaced, kernel: str = "thin_plate_spline")
 
 
 def deform_head(head: Head, targets: Mapping[str, np.ndarray], method: str = "dffd",
-                far_field: str = "similarity", rigid_parts=RIGID_PARTS) -> Head:
+                far_field: str = "similarity", rigid_parts=RIGID_PARTS,
+                extra: tuple[np.ndarray, np.ndarray] | None = None) -> Head:
     """The generic head moved so that its feature points land on ``targets``.
 
     Parameters
@@ -180,6 +181,10 @@ def deform_head(head: Head, targets: Mapping[str, np.ndarray], method: str = "df
         How the 27 bounding control points follow the feature points.
     rigid_parts : sequence of str
         Parts moved by a fitted similarity transform instead of deformed.
+    extra : ((M, 3), (M, 3)) float arrays, optional
+        More controls that are not feature points: places on the head (metres) and where
+        they go (the profile's, :func:`recon.shape.outline.follow_profile`); the far field
+        follows the feature points alone.
 
     Returns
     -------
@@ -220,9 +225,13 @@ def deform_head(head: Head, targets: Mapping[str, np.ndarray], method: str = "df
     else:
         a, t = fit_affine(rest, goal)
         far = box @ a.T + t
-    controls = np.vstack([rest, box])
-    displaced = np.vstack([goal, far])
-    names = ids + [f"bounding point {k}" for k in range(len(box))]
+    more_rest, more_goal = (np.zeros((0, 3)), np.zeros((0, 3))) if extra is None else (
+        np.asarray(extra[0], np.float64).reshape(-1, 3), np.asarray(extra[1], np.float64).reshape(-1, 3))
+    if more_rest.shape != more_goal.shape or not np.isfinite(more_goal).all():
+        raise InputError("the extra controls need as many finite goals as places")
+    controls = np.vstack([rest, more_rest, box])
+    displaced = np.vstack([goal, more_goal, far])
+    names = ids + [f"extra control {k}" for k in range(len(more_rest))] + [f"bounding point {k}" for k in range(len(box))]
 
     if method == "dffd":
         nn = NaturalNeighbours(controls, names)
@@ -260,6 +269,7 @@ def deform_head(head: Head, targets: Mapping[str, np.ndarray], method: str = "df
             if free and share > 0:
                 out.parts[b.part].vertices[[v for v, _ in free]] += (g - out.fp_position(i)) / share
     out.metadata = dict(out.metadata, deformation=dict(method=method, far_field=far_field,
-                                                       control_points=len(ids), bounding_points=len(box),
+                                                       control_points=len(ids), extra_controls=len(more_rest),
+                                                       bounding_points=len(box),
                                                        coincident_points_skipped=skipped))
     return out

@@ -11,7 +11,7 @@ point at the image centre. The camera of the mirrored photo
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import cv2
@@ -20,9 +20,14 @@ import numpy as np
 from mpeg4.errors import InputError
 from mpeg4.render import Camera
 
-__all__ = ["FittedCamera", "fit_camera"]
+__all__ = ["FittedCamera", "fit_camera", "fit_view_camera", "check_view_cameras"]
 
 _STAND_OFF = 3.0  # metres: where an orthographic camera stands in front of the head
+# How far (degrees) a fitted camera may look away from the direction its photo should show.
+_MAX_VIEW_ERROR_DEG = 35.0
+# Largest RMS distance between marked points and the fitted camera's projection, as a
+# share of the interpupillary distance in that photo.
+_MAX_RESIDUAL_SHARE = 0.12
 
 
 @dataclass
@@ -146,3 +151,71 @@ def _pinhole(X: np.ndarray, u: np.ndarray, width: int, height: int, f: float, wh
         raise InputError("the fitted camera sees some feature points from behind", where=where,
                          fix="check the points' labels and the focal length (--focal)")
     return cam
+
+
+def fit_view_camera(points3d: Mapping[str, np.ndarray], view, name: str, focal_px: float | None, where: str, cal,
+                    unreviewed: bool, say: Callable[[str], None]) -> FittedCamera:
+    """A photo's camera from its points (``view``: its :class:`~mpeg4.io.fdp_json.ViewAnnotation`,
+    ``name`` "front" or "side"), without those the calibration ``cal`` dropped from it.
+
+    For unreviewed (detected) points, a point the camera cannot explain (off by more than
+    the share of the IPD :func:`check_view_cameras` allows) is dropped too, the worst first,
+    unless it is one of the face's core points, said (``say``) and listed in ``cal.dropped``.
+    """
+    from mpeg4.catalogue import FEATURE_POINTS
+    from recon.shape.calibrate import is_core
+
+    gone = {i for i, d in cal.dropped.items() if d["view"] in (name, "both")}
+    own = {(FEATURE_POINTS[i].mirror or i) if name == "side" and i not in view.points else i for i in gone}
+    pixels = {i: p for i, p in view.points.items() if i not in gone and i not in own}
+    while True:
+        cam = fit_camera(points3d, pixels, view.width, view.height, focal_px=focal_px, where=where)
+        if not unreviewed:
+            return cam
+        limit = _MAX_RESIDUAL_SHARE * _view_scale(view)
+        worst = max((i for i in cam.residual_px
+                     if not is_core(i)),
+                    key=lambda i: cam.residual_px[i], default=None)
+        if cam.rms_px <= limit or worst is None or cam.residual_px[worst] <= limit:
+            return cam
+        say(f"left out {worst} on the {name} photo: the camera misses it by {cam.residual_px[worst]:.0f} px")
+        cal.dropped[worst] = {"view": name, "camera_px": round(float(cam.residual_px[worst]), 1)}
+        del pixels[worst]
+
+
+def _view_scale(view) -> float:
+    """Pixels of the IPD a photo shows (the pupils apart, or the eye to the ear in a profile)."""
+    pts = [view.points[i] for i in ("3.5", "3.6") if i in view.points]
+    if len(pts) == 2:
+        return float(np.linalg.norm(pts[0] - pts[1]))
+    b = [view.points[i] for i in ("10.9", "10.10", "10.7", "10.8") if i in view.points]
+    return float(np.linalg.norm(pts[0] - b[0])) if pts and b else max(view.width or 1, view.height or 1) * 0.1
+
+
+def check_view_cameras(cams: Mapping[str, FittedCamera], views: Mapping, where: str) -> None:
+    """Refuse annotations that no plausible front/side camera explains (a profile passed
+    as the front photo, points labelled on the wrong photo); ``views``: the annotations'
+    views by name, ``where`` the annotation file, for the message."""
+    for name, want, what in (("front", np.array([0.0, 0.0, 1.0]), "from the front"),
+                             ("side", None, "from the side")):
+        if name not in cams:
+            continue
+        cam = cams[name].camera
+        toward = cam.rotation[2]  # from the head towards the camera
+        if want is None:
+            angle = np.degrees(np.arccos(np.clip(abs(toward[0]), 0, 1)))
+        else:
+            angle = np.degrees(np.arccos(np.clip(toward @ want, -1, 1)))
+        if angle > _MAX_VIEW_ERROR_DEG:
+            raise InputError(f"the points marked on the {name} photo fit a camera {angle:.0f} degrees away from "
+                             f"looking {what}", where=f"{where}, views.{name}",
+                             fix=f"check that the {name} photo shows the face {what} and that its points are "
+                                 f"marked on it (not on the other photo)")
+        scale = _view_scale(views[name])
+        rms = cams[name].rms_px
+        if rms > _MAX_RESIDUAL_SHARE * scale:
+            worst = sorted(cams[name].residual_px.items(), key=lambda kv: -kv[1])[:3]
+            raise InputError(f"the points marked on the {name} photo do not fit one camera (off by {rms:.0f} px on "
+                             f"average; worst " + ", ".join(f"{i} by {r:.0f} px" for i, r in worst) + ")",
+                             where=f"{where}, views.{name}",
+                             fix="move those points to where the catalogue describes them (recon annotate)")

@@ -1,0 +1,212 @@
+"""The profile the side photo shows, between the feature points.
+
+The feature points fix the forehead, the nose, the lips and the chin at a dozen places on
+the face's midline; between them the head keeps the generic shape (Lee et al. name it:
+too few points on the profile). The side photo's outline from the brow down to the chin is
+the midline itself seen edge-on, and no hair hides it, so :func:`profile_controls` reads
+it there: each of the head's midline vertices between the brow and the chin is projected
+by the side photo's camera, and the photo's outline in its row against the head's own
+outline there (the head rendered by the same camera) says how far forward (or back) the
+face is at that height. Those midline vertices, a few millimetres apart and away from the
+feature points, become extra controls of the same DFFD (:func:`follow_profile`), which
+moves them forward or back along the face's depth to the outline, and the skin around them
+with them, while the feature points stay where they are; :func:`match_profile` does it
+twice, the second round taking most of what the interpolation left between the controls.
+
+An outline row that disagrees with the head by far more than a profile can (a fringe over
+the forehead, glasses on the nose, a hand) is left out, and so is a control whose
+neighbours along the profile disagree with it (a median over a few controls).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from mpeg4.head import Head
+from mpeg4.render import Camera
+
+__all__ = ["PROFILE_SPACING_MM", "MAX_PROFILE_SHIFT_IPD", "PROFILE_PASSES", "ProfileControls", "profile_controls",
+           "follow_profile", "match_profile"]
+
+#: Spacing of the profile's controls along the face's height, millimetres.
+PROFILE_SPACING_MM = 3.0
+#: A control is not placed this close to a feature point (millimetres): the point already
+#: holds the skin there.
+_CLEAR_OF_POINTS_MM = 3.0
+#: Largest move of the profile towards the photo's outline, in interpupillary distances
+#: (a tenth: 6 mm); a row further off is not the face's outline.
+MAX_PROFILE_SHIFT_IPD = 0.1
+#: Rounds of :func:`match_profile`: the DFFD between two controls does not reach the outline
+#: there at once; a second round takes most of the rest (on a real pair the controls' mean
+#: move was 2.9, then 1.4, then 0.6 mm).
+PROFILE_PASSES = 2
+#: Midline vertices: this close to the head's plane of symmetry, millimetres.
+_MIDLINE_MM = 1.0
+#: Controls along the profile a move is the median of (odd).
+_MEDIAN_OF = 3
+_BROW_IDS = ("4.1", "4.2", "4.3", "4.4", "4.5", "4.6")
+
+
+@dataclass
+class ProfileControls:
+    """Midline vertices moved onto the side photo's outline.
+
+    Attributes
+    ----------
+    vertices : (M,) int64
+        Skin vertices used as controls.
+    rest, goal : (M, 3) float64
+        Where they are and where the outline puts them, metres.
+    shift_mm : (M,) float64
+        Forward (+) or back (-) along the face's depth.
+    left_out : int
+        Midline vertices between the brow and the chin whose outline row disagreed too much.
+    """
+
+    vertices: np.ndarray
+    rest: np.ndarray
+    goal: np.ndarray
+    shift_mm: np.ndarray
+    left_out: int = 0
+
+
+def _face_edge(mask: np.ndarray, rows: np.ndarray, towards: int) -> np.ndarray:
+    """(len(rows),) the face-side column of ``mask`` in each (integer) row; NaN where empty.
+    ``towards``: -1 when the face looks to the image's left, +1 to its right."""
+    out = np.full(len(rows), np.nan)
+    for k, r in enumerate(rows):
+        cols = np.flatnonzero(mask[r])
+        if len(cols):
+            out[k] = cols[0] - 0.5 if towards < 0 else cols[-1] + 0.5
+    return out
+
+
+def _rendered(head: Head, camera: Camera) -> np.ndarray:
+    """(H, W) bool: where ``head`` covers the camera's image."""
+    from mpeg4.preview import head_meshes
+    from mpeg4.render import render
+
+    _, depth = render(head_meshes(head), camera, return_depth=True, samples=0, ambient=1.0)
+    return np.isfinite(depth)
+
+
+def profile_controls(head: Head, side_mask: np.ndarray, camera: Camera, side_points: Mapping[str, np.ndarray],
+                     spacing_mm: float = PROFILE_SPACING_MM) -> ProfileControls:
+    """The head's midline vertices between the brow and the chin, and where the side
+    photo's outline puts them.
+
+    Parameters
+    ----------
+    head : Head
+        The fitted head (metres; +z the face's forward direction).
+    side_mask : (H, W) bool
+        The head's silhouette in the side photo.
+    camera : Camera
+        The side photo's camera for ``head``.
+    side_points : mapping of str to (2,) float
+        Feature points on the side photo (pixels): the highest eyebrow point and the chin
+        (2.1) bound the outline used.
+    spacing_mm : float
+        Distance between controls along the face's height.
+
+    Returns
+    -------
+    ProfileControls
+        Empty (no vertices) when the photo shows no usable outline.
+    """
+    none = ProfileControls(np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
+    mask = np.asarray(side_mask, bool)
+    brows = [side_points[i][1] for i in _BROW_IDS if i in side_points]
+    if not brows or "2.1" not in side_points or not mask.any():
+        return none
+    top_row, chin_row = min(brows), float(side_points["2.1"][1])
+    skin = head.skin.vertices
+    # The face's forward direction in the image: where the nose tip projects against the
+    # ear, or the head's forward axis projected.
+    centre = 0.5 * (head.fp_position("3.5") + head.fp_position("3.6"))
+    a, b = camera.project(np.array([centre, centre + [0.0, 0.0, 0.01]]))
+    towards = 1 if b[0] > a[0] else -1
+    du_dz = (b[0] - a[0]) / 0.01  # pixels per metre forward, at the eyes' depth
+    ipd_px = abs(du_dz) * float(np.linalg.norm(head.fp_position("3.5") - head.fp_position("3.6")))
+    fps = np.array(list(head.fp_positions().values()))
+    mid = np.flatnonzero(np.abs(skin[:, 0]) < _MIDLINE_MM * 1e-3)
+    mid = mid[skin[mid, 2] > centre[2] - 0.01]  # the face's side of the head
+    if not len(mid):
+        return none
+    uv = camera.project(skin[mid])
+    inside = (uv[:, 1] >= top_row) & (uv[:, 1] <= chin_row)
+    mid, uv = mid[inside], uv[inside]
+    # Per height, the midline vertex furthest forward: the one the outline is made by.
+    order = np.argsort(skin[mid, 1])
+    mid, uv = mid[order], uv[order]
+    bins = np.floor((skin[mid, 1] - skin[mid, 1].min()) / (spacing_mm * 1e-3)).astype(int)
+    pick = []
+    for k in np.unique(bins):
+        j = np.flatnonzero(bins == k)
+        pick.append(j[np.argmax(skin[mid[j], 2])])
+    mid, uv = mid[pick], uv[pick]
+    clear = np.min(np.linalg.norm(skin[mid][:, None] - fps[None], axis=2), axis=1) > _CLEAR_OF_POINTS_MM * 1e-3
+    mid, uv = mid[clear], uv[clear]
+    if len(mid) < _MEDIAN_OF:
+        return none
+    rows = np.clip(np.round(uv[:, 1]).astype(int), 0, mask.shape[0] - 1)
+    # The photo's outline against the head's own, row by row: where the outline is not made
+    # by the midline (below the nose the alae may stand out), the two still agree when the
+    # head is right.
+    shift_px = (_face_edge(mask, rows, towards) - _face_edge(_rendered(head, camera), rows, towards)) * towards
+    limit = MAX_PROFILE_SHIFT_IPD * ipd_px
+    ok = np.isfinite(shift_px) & (np.abs(shift_px) <= limit)
+    # A move its neighbours along the profile do not share is noise in the outline.
+    padded = np.where(ok, shift_px, np.nan)
+    half = _MEDIAN_OF // 2
+    smooth = np.array([np.nanmedian(padded[max(0, k - half):k + half + 1])
+                       if np.isfinite(padded[max(0, k - half):k + half + 1]).any() else np.nan
+                       for k in range(len(padded))])
+    ok &= np.isfinite(smooth) & (np.abs(shift_px - smooth) <= 0.03 * ipd_px)
+    shift_m = smooth[ok] / abs(du_dz)
+    v = mid[ok]
+    rest = skin[v].copy()
+    goal = rest + shift_m[:, None] * [0.0, 0.0, 1.0]
+    return ProfileControls(v, rest, goal, shift_m * 1000.0, left_out=int((~ok).sum()))
+
+
+def follow_profile(head: Head, controls: ProfileControls) -> Head:
+    """``head`` with its midline moved onto the profile by the same DFFD that shaped it: the
+    feature points stay, the controls go to their goals (:func:`profile_controls`), the skin
+    between follows. The eyes, teeth and tongue stay where they are: the profile is skin
+    (and the pupils, feature points on the eyeballs, must not move)."""
+    from .deform import RIGID_PARTS, deform_head
+
+    if not len(controls.vertices):
+        return head
+    out = deform_head(head, head.fp_positions(), extra=(controls.rest, controls.goal))
+    for name in RIGID_PARTS:
+        if name in head.parts:
+            out.parts[name].vertices = head.parts[name].vertices.copy()
+            if head.parts[name].centre is not None:
+                out.parts[name].centre = head.parts[name].centre.copy()
+    return out
+
+
+def match_profile(head: Head, side_mask: np.ndarray, camera: Camera, side_points: Mapping[str, np.ndarray],
+                  passes: int = PROFILE_PASSES) -> Head:
+    """:func:`profile_controls` then :func:`follow_profile`, ``passes`` times;
+    ``metadata["fit"]["profile"]`` records the controls of each round (how many, how many
+    rows were left out, their mean and largest move in millimetres)."""
+    rounds = []
+    for _ in range(passes):
+        pc = profile_controls(head, side_mask, camera, side_points)
+        if not len(pc.vertices):
+            break
+        head = follow_profile(head, pc)
+        s = pc.shift_mm
+        rounds.append({"controls": int(len(s)), "left_out": pc.left_out,
+                       "mean_move_mm": round(float(np.abs(s).mean()), 2),
+                       "largest_move_mm": round(float(s[np.argmax(np.abs(s))]), 2)})
+    fit = dict(head.metadata.get("fit", {}))
+    fit["profile"] = {"rounds": rounds} if rounds else {"rounds": [], "note": "no outline between the brow and the chin"}
+    head.metadata = dict(head.metadata, fit=fit)
+    return head
