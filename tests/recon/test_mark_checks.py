@@ -1,13 +1,15 @@
 """recon.mark.checks: a marking that does not look like a face is reported as unreliable.
 
 The generic head and held-out ICT identities pass every check; each check catches the
-failure it is for.
+failure it is for; and a marking by a detector that put the mouth at the nose's height is
+written with the problem recorded in its fdp.json and printed by ``fmc mark``.
 """
 
 import warnings
 
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
 from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.errors import InputError
@@ -136,3 +138,56 @@ def test_degenerate_points_give_problems_not_errors(generic):
     assert "pupils_in_eye_openings" in _checks(_checked(shut))
     with pytest.raises(InputError, match="3 coordinates"):
         check_points({"3.5": np.zeros(2)})
+
+
+@pytest.fixture(scope="module")
+def mouth_at_the_nose(remeshed, tmp_path_factory):
+    """fmc mark with a detector that put every mouth point at the nose tip's height."""
+    pytest.importorskip("fast_simplification", reason="fast-simplification is not installed (pip install '.[test]')")
+    from recon.evaluate.synthetic import perfect_detector
+    from recon.mark import mark_file
+
+    mf = remeshed(3, "ply")
+    mesh = tmp_path_factory.mktemp("unreliable") / mf.path.name
+    mesh.write_bytes(mf.path.read_bytes())
+    true = perfect_detector(mf.points)
+
+    def detect(views):
+        fdp = true(views)
+        for view in fdp.views.values():
+            if "9.3" in view.points and "8.1" in view.points:
+                up = view.points["8.1"][1] - view.points["9.3"][1]  # pixels, y down
+                for i in view.points:
+                    if FEATURE_POINTS[i].group in (2, 8):
+                        view.points[i] = view.points[i] - [0.0, up]
+        return fdp
+
+    return mesh, *mark_file(mesh, detect=detect, passes=1)
+
+
+def test_an_unreliable_marking_is_written_and_says_so(mouth_at_the_nose):
+    from mpeg4.io import read_fdp_json
+
+    mesh, out, result = mouth_at_the_nose
+    assert not result.reliable and "nose_above_mouth" in _checks(result.problems)
+    gap = next(p for p in result.problems if p.check == "nose_above_mouth")
+    assert _outside(gap) and gap.value < 0.003  # metres: the nose tip within 3 mm of the lip's height
+    saved = read_fdp_json(out)
+    assert len(saved.points3d) == len(result.head.feature_points) >= 80  # written all the same
+    recorded = saved.metadata["mark3d"]["unreliable"]
+    assert recorded == [p.message for p in result.problems]
+    assert any(m.startswith("nose_above_mouth: ") and "9.3" in m and "8.1" in m for m in recorded)
+
+
+def test_fmc_mark_prints_the_problems_and_how_to_fix_them(mouth_at_the_nose, monkeypatch):
+    import recon.mark
+    from chain.cli import app
+
+    mesh, out, result = mouth_at_the_nose
+    monkeypatch.setattr(recon.mark, "mark_file", lambda *a, **k: (out, result))
+    run = CliRunner().invoke(app, ["mark", str(mesh)])
+    assert run.exit_code == 0, run.output
+    lines = [line for line in run.stderr.splitlines() if "unreliable: " in line]
+    assert len(lines) == len(result.problems) and any("nose_above_mouth" in line for line in lines)
+    assert f"recon annotate {mesh}" in run.stderr and "--up, --forward or --unit" in run.stderr
+    assert run.stdout.strip() == str(out)
