@@ -79,6 +79,12 @@ def mark(mesh: Path = typer.Argument(..., help="Head mesh (.glb, .gltf, .obj or 
         _say(note)
     for w in result.warnings:
         _say(f"warning: {w}")
+    for p in result.problems:
+        _say(f"warning: unreliable: {p.message}")
+    if result.problems:
+        _say(f"warning: the points fail {len(result.problems)} consistency check(s) and were written as they are: "
+             f"check them with recon annotate {mesh}, or mark again with --up, --forward or --unit if the head's "
+             "axes or unit were misread")
     low = sorted(i for i, c in result.confidence.items() if c < 0.5)
     _say(f"{len(result.hits)} points; {len(low)} to check" + (f" ({', '.join(low[:10])}"
                                                                 f"{' ...' if len(low) > 10 else ''})" if low else "")

@@ -37,6 +37,10 @@ comes in its own units and axes. :func:`mark` gives it both:
    noise needs (its ``give``).
 9. :func:`hidden_points` places the points no view shows and no fit reached (teeth,
    tongue; 7.1 on a mesh without a skin) from the generic head.
+10. :func:`check_points` checks that the points look like a face (the midline's vertical
+   order, left points left of their partners, the FAPU's proportions, the pupils in the
+   eye openings and on the eyeballs); a result that fails is still returned and written,
+   its problems recorded in it and in the file (:mod:`recon.mark.checks`).
 
 The result is an ``fdp.json`` that binds every point to the file's own vertices and says
 how to bring the mesh to the neutral frame and name its parts
@@ -56,7 +60,7 @@ from __future__ import annotations
 import os
 import tempfile
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -67,6 +71,7 @@ from mpeg4.head import FeaturePointBinding, Head
 from mpeg4.io.fdp_json import FdpFile, place_mesh
 from recon.shape.deform import fit_similarity
 
+from .checks import CHECKS, Problem, check_points
 from .decimate import MAX_MARK_TRIANGLES, carry_back, decimate
 from .frame import AXES, UNITS, Frame, check_mesh, estimate_frame, refine_frame
 from .lift import Hit, _Surface, lift
@@ -76,7 +81,8 @@ from .views import Views, landmark_detector, render_views, untextured_guesses
 
 __all__ = ["UNITS", "AXES", "Frame", "check_mesh", "estimate_frame", "refine_frame", "Views", "render_views",
            "landmark_detector", "untextured_guesses", "Hit", "lift", "find_parts", "fitted_points", "hidden_points",
-           "Marking", "mark", "mark_file", "load_mesh", "default_fdp_path", "MIN_POINTS", "MAX_MARK_TRIANGLES"]
+           "Problem", "CHECKS", "check_points", "Marking", "mark", "mark_file", "load_mesh", "default_fdp_path",
+           "MIN_POINTS", "MAX_MARK_TRIANGLES"]
 
 #: Fewest front-view points the detector must find for the render to count as a face.
 MIN_POINTS = 12
@@ -105,12 +111,16 @@ class Marking:
         In the neutral frame, parts named (skin, eye_l ...), feature points bound.
     fdp : FdpFile
         What ``fmc mark`` writes: bindings to the file's vertices, 3D points, FAPU, frame,
-        parts, and in ``metadata["mark3d"]`` the confidences and how each point was placed.
+        parts, and in ``metadata["mark3d"]`` the confidences, how each point was placed and
+        (``"unreliable"``) the messages of the consistency checks the points fail.
     frame : Frame
     hits : dict of str to Hit
     notes : list of str
         What was detected or assumed.
     warnings : list of str
+    problems : list of Problem
+        The consistency checks the points fail (:func:`check_points`); empty when the
+        result looks like a face. A result with problems is unreliable.
     """
 
     head: Head
@@ -119,6 +129,12 @@ class Marking:
     hits: dict[str, Hit]
     notes: list[str]
     warnings: list[str]
+    problems: list[Problem] = field(default_factory=list)
+
+    @property
+    def reliable(self) -> bool:
+        """Whether the points pass every consistency check."""
+        return not self.problems
 
     @property
     def confidence(self) -> dict[str, float]:
@@ -190,6 +206,8 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
     Returns
     -------
     Marking
+        With ``problems``, the consistency checks the points fail (:func:`check_points`):
+        an unreliable result is returned, and says so, rather than refused.
 
     Raises
     ------
@@ -205,7 +223,7 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
     warnings = check_mesh(raw, where)
     n = sum(len(p.triangles) for p in raw.parts.values())
     if n <= max_triangles:
-        return _mark(raw, where, warnings, detect, unit, up, forward, size, passes, say)
+        return _checked(_mark(raw, where, warnings, detect, unit, up, forward, size, passes, say), say)
     say(f"decimating the mesh's {n} triangles to at most {max_triangles} for marking")
     small, dec = decimate(raw, max_triangles)
     result = _mark(small, where, warnings, detect, unit, up, forward, size, passes, say)
@@ -221,7 +239,15 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
     notes = result.notes + [f"marked on a copy decimated from {dec.triangles[0]} to {dec.triangles[1]} triangles"]
     fdp.metadata["mark3d"]["notes"] = notes
     head.metadata = dict(raw.metadata, mark3d={"reviewed": False})
-    return Marking(head, fdp, result.frame, result.hits, notes, result.warnings)
+    return _checked(Marking(head, fdp, result.frame, result.hits, notes, result.warnings), say)
+
+
+def _checked(result: Marking, say: Callable[[str], None]) -> Marking:
+    """The marking with the consistency checks its points fail, in ``problems`` and the file's metadata."""
+    say("checking that the points look like a face")
+    result.problems = check_points(result.head.fp_positions(), result.head)
+    result.fdp.metadata["mark3d"]["unreliable"] = [p.message for p in result.problems]
+    return result
 
 
 def _mark(raw: Head, where: str, warnings: list[str], detect, unit, up, forward, size: int, passes: int,
@@ -327,6 +353,9 @@ def mark_file(mesh, out=None, detect=None, unit=None, up=None, forward=None, pas
     """``fmc mark`` / ``recon mark3d``: mark a head mesh and write its ``fdp.json``.
 
     A file already at ``out`` is kept as ``out.bak`` before it is replaced (atomically).
+    A result that fails the consistency checks is written too (to be put right in
+    ``recon annotate``), its problems in ``metadata["mark3d"]["unreliable"]`` and in
+    ``marking.problems``.
 
     Returns
     -------

@@ -66,6 +66,8 @@ def test_points_on_a_remeshed_identity(marked, fmt):
     # The file: bindings to the mesh as written, 3D points in the neutral frame.
     saved = read_fdp_json(out)
     assert saved.metadata["mark3d"]["reviewed"] is False and set(saved.metadata["mark3d"]["confidence"]) == set(err)
+    # True points pass every consistency check (recon.mark.checks), and the file says they were checked.
+    assert result.problems == [] and saved.metadata["mark3d"]["unreliable"] == [], result.problems
     assert np.allclose(saved.frame, result.frame.matrix)
 
 
