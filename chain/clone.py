@@ -46,7 +46,8 @@ def target_head(path, detect=None, progress=None) -> tuple[Head, list[str]]:
     result = mark(path, detect=detect, progress=progress)
     warnings = [f"{name} has no feature points: they were detected automatically and are unreviewed "
                 f"(save them with fmc mark {name}, check them with recon annotate {name})"]
-    return result.head, warnings + [f"{name}: {w}" for w in result.warnings]
+    return result.head, (warnings + [f"{name}: {w}" for w in result.warnings]
+                         + [f"{name}: unreliable points: {p.message}" for p in result.problems])
 
 
 def clone_onto(source, target, detect=None, progress=None, **options) -> tuple[Head, list[str]]:
