@@ -7,7 +7,10 @@ annotations, and measures the head against the photos (:mod:`recon.evaluate.real
 - ``built`` (1, or 0 with the error quoted) and the wall time, split into detection, shape,
   texture and export (``build_seconds``, medians);
 - ``point_agreement_ipd_pct``: RMS distance of the detected points from the head's points
-  projected by the fitted cameras, % of the interpupillary distance (IPD), per photo;
+  projected by the fitted cameras, % of the interpupillary distance (IPD), per photo (and
+  ``point_agreement_worst_*``, the four worst points); ``point_agreement_kept_ipd_pct``, the
+  same over the points the build kept as detected (not dropped, not brought under the hair
+  or back to the skull);
 - ``profile_line_ipd_pct``: the side photo's face-side outline from the brow to the chin
   against the rendered head's, mean distance in % IPD;
 - ``silhouette_iou_front``, ``silhouette_iou_side``: the rendered head against the photo's
@@ -177,8 +180,20 @@ def measure_view(fig: dict, pics: dict, head, cam, image: np.ndarray, pts: dict,
     mask, albedo = rp.rendered_mask(head, cam, textured=True)
     region = rp.head_region(image)
     fig[f"point_agreement_{view}_ipd_pct"] = rp.point_agreement(head, cam, pts)
-    misses = sorted(rp.point_misses(head, cam, pts).items(), key=lambda kv: -kv[1])[:4]
-    fig[f"point_agreement_worst_{view}"] = ", ".join(f"{i} {d:.0f} %" for i, d in misses)
+    misses = rp.point_misses(head, cam, pts)
+    fig[f"point_agreement_worst_{view}"] = ", ".join(f"{i} {d:.0f} %" for i, d in
+                                                    sorted(misses.items(), key=lambda kv: -kv[1])[:4])
+    # The same over the points the build kept as detected (not dropped, not brought under
+    # the hair or back to the skull): how well the head follows what it was given.
+    from mpeg4.catalogue import FEATURE_POINTS
+
+    fit = head.metadata.get("fit", {})
+    own = {i: FEATURE_POINTS[i].mirror or i for i in pts} if view == "side" else {i: i for i in pts}
+    gone = {i for i, d in fit.get("dropped_points", {}).items() if d.get("view") in (view, "both")}
+    kept = [d for i, d in misses.items() if fit.get("point_sources", {}).get(i) in ("front+side", "front", "side", "mirror")
+            and i not in gone and own[i] not in gone]
+    if kept and "point_sources" in fit:
+        fig[f"point_agreement_kept_{view}_ipd_pct"] = float(np.sqrt(np.mean(np.square(kept))))
     chin = pts.get("2.1", [0, image.shape[0]])[1]
     fig[f"silhouette_iou_{view}"] = rp.silhouette_iou(region, mask, chin)
     if view == "side":
@@ -326,6 +341,9 @@ def main(argv=None) -> int:
     pa = [f[k] for f in results.values() for k in ("point_agreement_front_ipd_pct", "point_agreement_side_ipd_pct")
           if k in f]
     print(f"point_agreement_ipd_pct: {np.median(pa) if pa else float('nan'):.3f}")
+    pk = [f[k] for f in results.values() for k in ("point_agreement_kept_front_ipd_pct",
+                                                    "point_agreement_kept_side_ipd_pct") if k in f]
+    print(f"point_agreement_kept_ipd_pct: {np.median(pk) if pk else float('nan'):.3f}")
     for key in FIGURES[2:-4]:
         print(f"{key}: {median(key):.3f}")
     print(f"identity_distance: {median('identity_distance'):.3f}")

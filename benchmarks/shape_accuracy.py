@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
 NPZ = ROOT.parent / "shared" / "data" / "ict_facekit" / "ict_facekit.npz"
 FACE = slice(0, 9409)  # ICT "Full face area"
 F_50MM = 1024 * 50.0 / 24.0  # 50 mm lens on a 24 mm-high sensor, 1024 px high
