@@ -287,9 +287,10 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
         # Texel (x, y) sits at (x / grid, y / grid) on the coarse map.
         along = (np.arange(size, dtype=np.float32) / grid)
         mx, my = np.broadcast_to(along[None, :], (size, size)), np.broadcast_to(along[:, None], (size, size))
-        full = np.stack([cv2.remap(np.ascontiguousarray(cmap[..., k]), np.ascontiguousarray(mx),
-                                   np.ascontiguousarray(my), cv2.INTER_LINEAR) for k in range(2)], axis=-1)
-        layers.append(cv2.remap(photo, full[..., 0], full[..., 1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE))
+        mx, my = np.ascontiguousarray(mx), np.ascontiguousarray(my)
+        # The two coordinates apart (each remap writes a contiguous map the next one reads).
+        fx, fy = (cv2.remap(np.ascontiguousarray(cmap[..., k]), mx, my, cv2.INTER_LINEAR) for k in range(2))
+        layers.append(cv2.remap(photo, fx, fy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE))
     times["warp"] = time.perf_counter() - t2
 
     say("blending the three layers (multiresolution spline)")

@@ -167,9 +167,11 @@ class FeatureLineWarp:
         zc = 0.5 * (hull[:, 1].min() + hull[:, 1].max())
         sig = self._sigma
 
+        rx, rz = ring[:, 0].copy(), ring[:, 1].copy()
+
         def at(s):
-            s = np.mod(s, perimeter)
-            return np.c_[np.interp(s, cum, ring[:, 0]), np.interp(s, cum, ring[:, 1])]
+            s = np.mod(np.atleast_1d(s), perimeter)
+            return np.stack([np.interp(s, cum, rx), np.interp(s, cum, rz)], axis=-1)
 
         # Arc position of the anchor (the nearest place on the outline).
         if midline:
@@ -202,7 +204,8 @@ class FeatureLineWarp:
         y = float(x[1])
 
         def point(t):
-            return np.array([*at(s_a + direction * t)[0][:1], y, at(s_a + direction * t)[0][1]])
+            q = at(s_a + direction * t)[0]
+            return np.array([q[0], y, q[1]])
 
         anchor3 = point(0.0) if midline else np.asarray(x, float)
         s_anchor = self._side.project(anchor3[None])[0]
@@ -328,13 +331,22 @@ def sections(vertices: np.ndarray, triangles: np.ndarray, heights: np.ndarray) -
     edges = np.r_[tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]
     a, b = vertices[edges[:, 0]], vertices[edges[:, 1]]
     lo, hi = np.minimum(a[:, 1], b[:, 1]), np.maximum(a[:, 1], b[:, 1])
-    out = []
-    for y in np.asarray(heights, float):
-        m = (lo < y) & (hi >= y)
-        t = (y - a[m, 1]) / (b[m, 1] - a[m, 1])
-        p = a[m] + t[:, None] * (b[m] - a[m])
-        out.append(p[:, [0, 2]])
-    return out
+    heights = np.asarray(heights, float)
+    # Each edge crosses the heights y with lo < y <= hi: a run of the sorted heights, found
+    # by two searches instead of a test of every edge at every height.
+    order = np.argsort(heights, kind="stable")
+    sorted_h = heights[order]
+    first = np.searchsorted(sorted_h, lo, side="right")
+    count = np.searchsorted(sorted_h, hi, side="right") - first
+    edge = np.repeat(np.arange(len(edges)), count)
+    k = np.arange(len(edge)) - np.repeat(np.cumsum(count) - count, count) + np.repeat(first, count)
+    which = order[k]  # the height each crossing belongs to
+    y = heights[which]
+    t = (y - a[edge, 1]) / (b[edge, 1] - a[edge, 1])
+    p = (a[edge] + t[:, None] * (b[edge] - a[edge]))[:, [0, 2]]
+    # Grouped by height, each group's crossings in edge order (as the per-height test gave).
+    by = np.argsort(which, kind="stable")
+    return np.split(p[by], np.cumsum(np.bincount(which, minlength=len(heights)))[:-1])
 
 
 def _first_crossing(s: np.ndarray, signed_x: np.ndarray, right_end: np.ndarray) -> float:
