@@ -12,6 +12,10 @@ played, and says what it changed:
   out of this estimate; lids not at all. Where each point goes is
   its own FAP's value (or, for a lip FAP the stream never set, where the jaw carries it)
   plus what the frame's visemes and expressions do to it.
+- **The midline** (:data:`MIDLINE_FAPS`): the brows' squeeze pulls each inner brow point
+  (4.1, 4.2) towards the midline; it stops while the point keeps :data:`MIDLINE_KEEP` of
+  its neutral distance from it (skin is left between the brows: a squeeze of 220 once moved
+  the skin between them 14 mm sideways, through the other brow's).
 - **Turns** (:data:`TURN_LIMITS_DEG`): eyeball and head rotations clamped to a range of
   motion. The standard gives none; these are this project's choice, round figures inside
   a typical adult's range (eyes about 45° each way, the head 80° of yaw, 60° of pitch,
@@ -31,11 +35,17 @@ from mpeg4.head import Head
 from .author import JAW_FAPS
 from .decouple import effect_of, table_effect
 
-__all__ = ["MEETING_PAIRS", "TURN_LIMITS_DEG", "Limits"]
+__all__ = ["MEETING_PAIRS", "MIDLINE_FAPS", "MIDLINE_KEEP", "TURN_LIMITS_DEG", "Limits"]
 
 #: (upper FAP, lower FAP) whose points must not pass each other: lids, then inner and
 #: outer lip contours (centre, left and right midpoints).
 MEETING_PAIRS = ((19, 21), (20, 22), (4, 5), (8, 10), (9, 11), (51, 52), (55, 57), (56, 58))
+
+#: FAPs that move their point towards the face's midline when positive: the brows' squeeze.
+MIDLINE_FAPS = (37, 38)
+#: Share of its neutral distance from the midline an inner brow point keeps at the most
+#: squeeze (the project's choice: the brows draw together, they do not meet).
+MIDLINE_KEEP = 0.25
 
 #: Largest turn, degrees each way, per rotation FAP.
 TURN_LIMITS_DEG = {23: 45.0, 24: 45.0, 25: 40.0, 26: 40.0, 48: 60.0, 49: 80.0, 50: 40.0}
@@ -69,6 +79,13 @@ class Limits:
         self._high = {key: table_effect(head, t, points) for key, t in fat.items() if key[0] in (1, 2)}
         self._n_points = len(points)
         self.turns = {n: np.radians(deg) / fap_unit(n, head.fapu) for n, deg in TURN_LIMITS_DEG.items()}
+        self.midline = {}
+        for n in MIDLINE_FAPS:
+            fp = FAPS[n].feature_points[0]
+            towards = -fap_unit(n, head.fapu) * FAPS[n].axis_vector[0]  # towards x = 0 per unit, metres
+            x0 = float(head.fp_position(fp)[0]) if fp in head.feature_points else 0.0
+            if x0 * towards > 0:  # positive values move the point towards the midline
+                self.midline[n] = (1.0 - MIDLINE_KEEP) * abs(x0) / abs(towards)
 
     def __call__(self, values: Mapping) -> tuple[dict, list[str]]:
         """One frame's values within the limits, and what was changed.
@@ -101,6 +118,11 @@ class Limits:
                     out[upper] = (top + 0.5 * excess - y_u - high[2 * p]) / k_u
                     out[lower] = (bottom - 0.5 * excess - y_l - high[2 * p + 1]) / k_l
                     changed.append(f"{FAPS[upper].name}/{FAPS[lower].name} stopped where they meet")
+        for n, most in self.midline.items():
+            v = out.get(n)
+            if v and v > most:
+                out[n] = most
+                changed.append(f"{FAPS[n].name} stopped short of the midline")
         for n, limit in self.turns.items():
             v = out.get(n)
             if v and abs(v) > limit:

@@ -145,3 +145,26 @@ def test_eyeball_turns_are_clamped_to_a_range_of_motion(shipped):
     assert np.degrees(values[49] * 1e-5) == pytest.approx(-TURN_LIMITS_DEG[49])
     assert values[3] == 100.0 and len(changed) == 2
     assert limits({23: 1000.0}) == ({23: 1000.0}, [])
+
+
+def test_the_brows_squeeze_stops_short_of_the_midline(shipped):
+    """A squeeze of 220 on both brows would draw each inner brow point past the midline; the
+    limits stop each while it keeps a quarter of its neutral distance from it, and say so."""
+    from fmc.limits import MIDLINE_KEEP
+
+    frame = {37: 220.0, 38: 220.0}
+    x0 = {i: shipped.fp_position(i)[0] for i in ("4.1", "4.2")}
+    limited = Player(shipped)
+    parts = limited.part_vertices(limited.vertices(frame))
+    for i, x in x0.items():
+        got = shipped.fp_position(i, parts)[0]
+        assert np.sign(got) == np.sign(x) and abs(got) > 0.8 * MIDLINE_KEEP * abs(x), (i, got, x)
+    assert sum("stopped short of the midline" in k for k in limited.decode.clamped) == 2
+    free = Player(shipped, limits=False)
+    parts = free.part_vertices(free.vertices(frame))
+    assert all(abs(shipped.fp_position(i, parts)[0]) < 0.5 * MIDLINE_KEEP * abs(x) or
+               np.sign(shipped.fp_position(i, parts)[0]) != np.sign(x) for i, x in x0.items())
+    # A squeeze within the limit is played as given.
+    from fmc.limits import Limits
+
+    assert Limits(shipped)({37: 60.0, 38: 60.0}) == ({37: 60.0, 38: 60.0}, [])
