@@ -1,4 +1,4 @@
-"""Feature points on any 3D head: ``fmc mark`` and ``recon mark3d``.
+"""Feature points on any 3D head: ``fmc mark``.
 
 A head from a sculpting tool, a scan or an asset store has no MPEG-4 feature points, and
 comes in its own units and axes. :func:`mark` gives it both:
@@ -350,7 +350,7 @@ def _mark(raw: Head, where: str, warnings: list[str], detect, unit, up, forward,
 
 def mark_file(mesh, out=None, detect=None, unit=None, up=None, forward=None, passes: int = 2,
               progress: Callable[[str], None] | None = None) -> tuple[Path, Marking]:
-    """``fmc mark`` / ``recon mark3d``: mark a head mesh and write its ``fdp.json``.
+    """``fmc mark``: mark a head mesh and write its ``fdp.json``.
 
     A file already at ``out`` is kept as ``out.bak`` before it is replaced (atomically).
     A result that fails the consistency checks is written too (to be put right in
