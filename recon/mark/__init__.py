@@ -371,6 +371,15 @@ def mark_file(mesh, out=None, detect=None, unit=None, up=None, forward=None, pas
     if out.is_dir():
         raise InputError("expected a file name, found a folder", where=out, fix="give a name such as head.fdp.json")
     result = mark(mesh, detect=detect, unit=unit, up=up, forward=forward, passes=passes, progress=progress)
+    swapped = [p for p in result.problems if p.check == "left_right"]
+    if swapped:
+        # An fdp.json with the face's sides swapped is refused by every reader: say what to
+        # do about the mesh rather than write a file nothing can open.
+        raise InputError(f"the marked points have the face's sides swapped ({swapped[0].message}), so they are not "
+                         f"written", where=os.fspath(mesh),
+                         fix="the mesh may face the other way or be mirrored: mark it again with --forward (the "
+                             "direction the face looks, e.g. --forward -z) or --up, or place the points by hand with "
+                             f"recon annotate {os.fspath(mesh)}")
     if out.exists():
         backup = out.with_name(out.name + ".bak")
         with atomic_write(backup, "wb", permissions=out.stat().st_mode) as f:  # a private file's copy stays private

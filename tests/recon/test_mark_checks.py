@@ -191,3 +191,29 @@ def test_fmc_mark_prints_the_problems_and_how_to_fix_them(mouth_at_the_nose, mon
     assert len(lines) == len(result.problems) and any("nose_above_mouth" in line for line in lines)
     assert f"recon annotate {mesh}" in run.stderr and "--up, --forward or --unit" in run.stderr
     assert run.stdout.strip() == str(out)
+
+
+def test_a_marking_with_the_sides_swapped_is_refused_with_what_to_do(remeshed, tmp_path):
+    """A detector that names the sides by the viewer's left and right: the marked points come
+    out with the face's sides swapped, which no reader would open; fmc mark says to mark the
+    mesh again facing the other way (or by hand), and writes nothing."""
+    pytest.importorskip("fast_simplification", reason="fast-simplification is not installed (pip install '.[test]')")
+    from recon.evaluate.synthetic import perfect_detector
+    from recon.mark import mark_file
+
+    mf = remeshed(3, "ply")
+    mesh = tmp_path / mf.path.name
+    mesh.write_bytes(mf.path.read_bytes())
+    true = perfect_detector(mf.points)
+
+    def detect(views):
+        fdp = true(views)
+        for view in fdp.views.values():
+            view.points = {(FEATURE_POINTS[i].mirror or i): p for i, p in view.points.items()}
+            view.confidence = {(FEATURE_POINTS[i].mirror or i): c for i, c in view.confidence.items()}
+        return fdp
+
+    with pytest.raises(InputError, match="sides swapped") as err:
+        mark_file(mesh, detect=detect, passes=1)
+    assert "--forward" in err.value.fix and f"recon annotate {mesh}" in err.value.fix
+    assert not (tmp_path / (mesh.name + ".fdp.json")).exists() and not list(tmp_path.glob("*.fdp.json"))
