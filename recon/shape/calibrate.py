@@ -30,7 +30,7 @@ from mpeg4.errors import InputError
 from mpeg4.head import Head
 
 from .deform import bounding_controls, dffd, fit_similarity
-from .hair import skull_normals, skull_offset
+from .hair import skull_normals, skull_under
 
 __all__ = ["DEFAULT_IPD_MM", "CORE_GROUPS", "is_core", "Calibration", "HeightsDisagree", "calibrate"]
 
@@ -247,13 +247,7 @@ def _skull_prior(cal: Calibration, generic: Head, under_hair: Collection[str] = 
         d = cal.points[i] - guess[i]
         if i in under_hair and i in normals:
             # Along the normal the outline is hair over the skull; across it, as for any point.
-            n = normals[i]
-            out = float(d @ n)
-            across = d - out * n
-            k = float(np.linalg.norm(across))
-            if k > slack:
-                across *= slack / k
-            cal.points[i] = guess[i] + across + skull_offset(out * 1000.0) / 1000.0 * n
+            cal.points[i] = skull_under(guess[i], cal.points[i], normals[i], across_limit=slack)
             cal.source[i] = "under hair"
             continue
         n = float(np.linalg.norm(d))

@@ -272,7 +272,7 @@ def _under_hair(front: Mapping, ids: list[str], pos: dict, camera, generic: Head
     """The skull points ``ids`` under the hair whose outline the photo shows at their marked
     pixels: the fitted model's point, moved across the line of sight as the others are, but
     along the skull's normal only by what hair cannot explain (:mod:`recon.shape.hair`)."""
-    from .hair import skull_normals, skull_offset
+    from .hair import skull_normals, skull_under
 
     normals = skull_normals(generic)
     out = {}
@@ -282,8 +282,7 @@ def _under_hair(front: Mapping, ids: list[str], pos: dict, camera, generic: Head
         x = pos[i]
         p, J = _projection_jacobian(camera, x[None])
         move = np.linalg.pinv(J[0]) @ (np.asarray(front[i], float) - p[0])
-        n = normals[i]
-        out[i] = x + (move - (move @ n) * n) + skull_offset(float(move @ n) * 1000.0) / 1000.0 * n
+        out[i] = skull_under(x, x + move, normals[i])
     return out
 
 

@@ -31,7 +31,7 @@ from scipy.special import log_ndtr
 
 from mpeg4.head import Head
 
-__all__ = ["SKULL_SD_MM", "HAIR_MEAN_MM", "UNDER_HAIR", "skull_offset", "skull_normals"]
+__all__ = ["SKULL_SD_MM", "HAIR_MEAN_MM", "UNDER_HAIR", "skull_offset", "skull_under", "skull_normals"]
 
 #: Spread (mm, one standard deviation along the normal) of the skull's top and back about
 #: where a face's points put them.
@@ -67,6 +67,20 @@ def skull_offset(outline_mm, skull_sd_mm: float = SKULL_SD_MM, hair_mean_mm: flo
     ratio = np.exp(-0.5 * a * a - 0.5 * np.log(2 * np.pi) - log_ndtr(a))
     out = np.minimum(mu - s * ratio, d)
     return out if out.ndim else float(out)
+
+
+def skull_under(guess: np.ndarray, outline: np.ndarray, normal: np.ndarray, across_limit: float = np.inf) -> np.ndarray:
+    """(3,) where the skull lies under a hair outline, metres: from ``guess`` (where the
+    face's points put it), across the ``normal`` as far as the ``outline`` point (at most
+    ``across_limit``), along it by :func:`skull_offset` of the outline's distance out."""
+    d = np.asarray(outline, float) - np.asarray(guess, float)
+    n = np.asarray(normal, float)
+    out = float(d @ n)
+    across = d - out * n
+    k = float(np.linalg.norm(across))
+    if k > across_limit:
+        across *= across_limit / k
+    return guess + across + skull_offset(out * 1000.0) / 1000.0 * n
 
 
 def skull_normals(head: Head) -> dict[str, np.ndarray]:
