@@ -74,14 +74,13 @@ class ProfileControls:
 
 
 def _face_edge(mask: np.ndarray, rows: np.ndarray, towards: int) -> np.ndarray:
-    """(len(rows),) the face-side column of ``mask`` in each (integer) row; NaN where empty.
-    ``towards``: -1 when the face looks to the image's left, +1 to its right."""
-    out = np.full(len(rows), np.nan)
-    for k, r in enumerate(rows):
-        cols = np.flatnonzero(mask[r])
-        if len(cols):
-            out[k] = cols[0] - 0.5 if towards < 0 else cols[-1] + 0.5
-    return out
+    """(len(rows),) the face-side edge of ``mask`` in each (integer) row, at the outer side
+    of its last pixel; NaN where empty. ``towards``: -1 when the face looks to the image's
+    left, +1 to its right."""
+    from recon.landmarks.silhouette import row_extents
+
+    left, right = row_extents(mask)
+    return left[rows] - 0.5 if towards < 0 else right[rows] + 0.5
 
 
 def _rendered(head: Head, camera: Camera) -> np.ndarray:
@@ -124,8 +123,7 @@ def profile_controls(head: Head, side_mask: np.ndarray, camera: Camera, side_poi
         return none
     top_row, chin_row = min(brows), float(side_points["2.1"][1])
     skin = head.skin.vertices
-    # The face's forward direction in the image: where the nose tip projects against the
-    # ear, or the head's forward axis projected.
+    # The face's forward direction in the image: the head's forward axis projected at the eyes.
     centre = 0.5 * (head.fp_position("3.5") + head.fp_position("3.6"))
     a, b = camera.project(np.array([centre, centre + [0.0, 0.0, 0.01]]))
     towards = 1 if b[0] > a[0] else -1
