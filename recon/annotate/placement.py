@@ -249,9 +249,7 @@ def _detect_checked(detect: Callable, front, side) -> FdpFile:
     except UnsureFacing as e:
         found = detect(os.fspath(front), os.fspath(side), side_facing=e.found.facing)
         meta = found.metadata.setdefault("landmarks", {})
-        meta["side_facing"] = {"facing": e.found.facing, "confidence": round(e.found.confidence, 3),
-                               "votes": {k: round(v, 3) for k, v in e.found.votes.items()}, "given": False,
-                               "unsure": True}
+        meta["side_facing"] = {**e.found.record(), "given": False, "unsure": True}
         meta.setdefault("warnings", []).append(
             f"the side photo's facing is unsure ({e.found.describe()}): check that the nose points "
             f"{e.found.facing}, else turn the side photo's points round (T)")

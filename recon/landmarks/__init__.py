@@ -81,9 +81,7 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
                                      points=dict(v.points), confidence=dict(v.confidence))
     meta = {"landmarks": {"method": _METHOD,
                           "side_shows": shown,
-                          "side_facing": {"facing": facing.facing, "confidence": round(facing.confidence, 3),
-                                          "votes": {k: round(v, 3) for k, v in facing.votes.items()},
-                                          "given": facing.given},
+                          "side_facing": facing.record(),
                           "side_parts_seen": [k for k in ("eye", "lips", "ear") if s.extras.get(k) is not None],
                           "under_hair": {"front": list(f.extras.get("under_hair", [])),
                                          "side": list(s.extras.get("under_hair", []))},

@@ -66,6 +66,11 @@ class Facing:
         sign = 1.0 if self.facing == "left" else -1.0
         return [k for k, v in self.votes.items() if v * sign < -0.05]
 
+    def record(self) -> dict:
+        """What an annotation file's ``metadata["landmarks"]["side_facing"]`` keeps of it."""
+        return {"facing": self.facing, "confidence": round(self.confidence, 3),
+                "votes": {k: round(v, 3) for k, v in self.votes.items()}, "given": self.given}
+
     def describe(self) -> str:
         if self.given:
             return f"facing {self.facing} (given)"
