@@ -15,11 +15,11 @@ of painted ICT identities (``recon.evaluate.synthetic``), clean and from the har
 through the automatic route — ``recon.landmarks.detect_images``, then
 ``recon.shape.fit.fit_head`` as ``recon build`` runs it (unreviewed points, outliers
 dropped; the true interpupillary distance and focal length given), then the profile moved
-onto the side photo's outline (``recon.shape.outline.match_profile``, the side camera
-fitted to the points) — and the head is measured against the identity the same way: over
-the face, over the top of the skull (above the middle of the hairline, 11.1), which the
-hard set's hair hides, per hair style, and over the face's midline from the brow to the
-chin before and after the profile step (``_profile_points_only`` and ``_profile``).
+onto the side photo's outline (``recon.build.follow_side_outline``, as the build does
+it) — and the head is measured against the identity the same way: over the face, over the
+top of the skull (above the middle of the hairline, 11.1), which the hard set's hair hides,
+per hair style, and over the face's midline from the brow to the chin before and after the
+profile step (``_profile_points_only`` and ``_profile``).
 
 Run: ``python3 benchmarks/shape_accuracy.py [--identities 20] [--photos 6] [--heatmap out.png]``
 Prints ``name: value unit`` lines; the last line is a summary.
@@ -157,10 +157,8 @@ def from_photos(generic, people: int) -> str:
     from mpeg4.errors import InputError
     from recon.evaluate.synthetic import hard_pair, synthetic_pair
     from recon.landmarks import detect_images, mediapipe_available
-    from recon.landmarks.silhouette import head_masks
+    from recon.build import follow_side_outline
     from recon.shape.fit import fit_head
-    from recon.shape.outline import match_profile
-    from recon.texture.cameras import fit_camera
 
     if not mediapipe_available():
         print("photos: skipped (mediapipe is not installed)")
@@ -193,9 +191,7 @@ def from_photos(generic, people: int) -> str:
                 return np.linalg.norm(h.skin.vertices - off - truth.skin.vertices, axis=1) * 1000
 
             errs["profile_points_only"].append(error(head)[profile])
-            view = fdp.views["side"]
-            cam = fit_camera(head.fp_positions(), view.points, view.width, view.height, focal_px=pair.focal_px)
-            head = match_profile(head, head_masks([pair.side])[0], cam.camera, view.points)
+            head, _ = follow_side_outline(head, fdp, pair.side, cal, pair.focal_px)
             err = error(head)
             errs["profile"].append(err[profile])
             errs["face"].append(err[FACE])

@@ -44,8 +44,8 @@ from .detection import DETECTED_NAME, correction_hint, detect_annotations
 from .photos import (MAX_PHOTO_PIXELS, check_photo, photo_focal_px, photo_scale, photo_size, photos_focal_px,
                      read_photo, view_at_size)
 
-__all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "run_build", "bundle_fdp", "build_time",
-           "preview_with_photos", "DEFAULT_TEXTURE_SIZE"]
+__all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "follow_side_outline", "run_build", "bundle_fdp",
+           "build_time", "preview_with_photos", "DEFAULT_TEXTURE_SIZE"]
 
 #: Texture size (pixels, square) unless asked otherwise.
 DEFAULT_TEXTURE_SIZE = 2048
@@ -189,8 +189,8 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
         (:func:`recon.shape.calibrate.calibrate`).
     follow_profile : bool
         Move the face's midline between the feature points onto the side photo's outline
-        from the brow to the chin (:mod:`recon.shape.outline`; needs the head segmentation,
-        mediapipe), through the shape pair's side camera.
+        from the brow to the chin (:func:`follow_side_outline`; needs the head segmentation,
+        mediapipe), through the side camera the texture then uses.
 
     Returns
     -------
@@ -218,8 +218,10 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
             f"{height_tol_mm:g} mm: " + ", ".join(f"{i} ({d['disagreement_mm']:+.1f} mm, {d['view']} photo"
                                                f"{'s' if d['view'] == 'both' else ''})" for i, d in cal.dropped.items())
             + "; check them with recon annotate")
+    side_cam = None
     if follow_profile:
-        head = _follow_profile(head, shape, cal, focal(shape), say)
+        head, side_cam = follow_side_outline(head, shape.fdp, shape.side, cal, focal(shape),
+                                             shape.paths.get("fdp", "fdp.json"), say)
     tex_pair = texture or shape
     tex_head = head
     if texture is not None:
@@ -228,7 +230,8 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
                                      method=method, where=texture.paths.get("fdp", "fdp.json"),
                                      height_tol_mm=height_tol_mm)
         if follow_profile:
-            tex_head = _follow_profile(tex_head, texture, tex_cal, focal(texture), say)
+            tex_head, side_cam = follow_side_outline(tex_head, texture.fdp, texture.side, tex_cal, focal(texture),
+                                                     texture.paths.get("fdp", "fdp.json"), say)
     times["shape"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     pts = tex_head.fp_positions()
@@ -237,6 +240,10 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     cams = {}
     for name in ("front", "side"):
         view = tex_pair.fdp.views[name]
+        if name == "side" and side_cam is not None:
+            # Fitted for the profile to the same points (the step moves no feature point).
+            cams[name] = side_cam
+            continue
         cams[name] = fit_view_camera(pts, view, name, focal(tex_pair), f"{where}, views.{name}", tex_cal,
                                       tex_pair.fdp.metadata.get("reviewed") is False, say)
     check_view_cameras(cams, tex_pair.fdp.views, where)
@@ -245,26 +252,50 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
     return _finish(head, skin, tex_pair, cams, atlas, texture_size, keep_lighting, times, t0, t1, say)
 
 
-def _follow_profile(head: Head, pair: PhotoPair, cal, focal_px: float | None, say) -> Head:
-    """:func:`recon.shape.outline.match_profile` onto the side photo's outline, through the
-    side camera fitted to the head's points (the head as it is when the segmentation is not
-    installed)."""
+def follow_side_outline(head: Head, fdp, side_photo: np.ndarray, cal, focal_px: float | None,
+                        where: str = "fdp.json", say: Callable[[str], None] | None = None
+                        ) -> tuple[Head, FittedCamera | None]:
+    """The head's profile moved onto the side photo's outline
+    (:func:`recon.shape.outline.match_profile`), through the side camera fitted to the
+    head's points as the texture's is (:func:`recon.texture.cameras.fit_view_camera`).
+
+    Parameters
+    ----------
+    head : Head
+        The head fitted to ``fdp``'s points (:func:`recon.shape.fit.fit_head`).
+    fdp : FdpFile
+        Its annotations (the side view's points, pixels of ``side_photo``).
+    side_photo : (H, W, 3) uint8
+    cal : Calibration
+        What the fit did (the points it dropped stay out of the camera).
+    focal_px : float or None
+    where : str
+        The annotation file, for messages.
+    say : callable, optional
+
+    Returns
+    -------
+    head : Head
+        As given when the segmentation (mediapipe) is not installed.
+    camera : FittedCamera or None
+        The side camera (None when nothing was done).
+    """
     from .landmarks import mediapipe_available
     from .shape.outline import match_profile
 
+    say = say or (lambda m: None)
     if not mediapipe_available():
         say("the profile between the feature points is the generic head's: the side photo's outline needs "
             "mediapipe (bash install.sh)")
-        return head
+        return head, None
     from .landmarks.silhouette import head_masks
 
-    where = pair.paths.get("fdp", "fdp.json")
-    camera = fit_view_camera(head.fp_positions(), pair.fdp.views["side"], "side", focal_px, f"{where}, views.side",
-                             cal, pair.fdp.metadata.get("reviewed") is False, say)
-    check_view_cameras({"side": camera}, pair.fdp.views, where)
+    camera = fit_view_camera(head.fp_positions(), fdp.views["side"], "side", focal_px, f"{where}, views.side",
+                             cal, fdp.metadata.get("reviewed") is False, say)
+    check_view_cameras({"side": camera}, fdp.views, where)
     say("moving the profile onto the side photo's outline")
-    (mask,) = head_masks([pair.side])
-    return match_profile(head, mask, camera.camera, pair.fdp.views["side"].points)
+    (mask,) = head_masks([side_photo])
+    return match_profile(head, mask, camera.camera, fdp.views["side"].points), camera
 
 
 def _finish(head, skin, pair, cams, atlas, texture_size, keep_lighting, times, t0, t1, say) -> BuildResult:
