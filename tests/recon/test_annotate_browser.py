@@ -48,6 +48,16 @@ def browser():
         b.close()
 
 
+def _open(browser, url, timeout=20000):
+    """A page on the annotation app, ready; and the list its script errors go to."""
+    page = browser.new_page(viewport={"width": 1400, "height": 860})
+    errors = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.goto(url)
+    page.wait_for_selector("body[data-ready=true]", timeout=timeout)
+    return page, errors
+
+
 def _point(page, view, fp_id):
     el = page.locator(f'svg.photo[data-view="{view}"] .pt[data-id="{fp_id}"]')
     return np.array([float(el.get_attribute("data-x")), float(el.get_attribute("data-y"))])
@@ -100,11 +110,7 @@ def test_drag_guides_mirror_undo_redo_save_reload(photos, browser, tmp_path, ann
     proc, url = annotate_cli.start(*photos, "--fdp", fdp, "--no-detect")
     ARTIFACTS.mkdir(exist_ok=True)
     try:
-        page = browser.new_page(viewport={"width": 1400, "height": 860})
-        errors = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(url)
-        page.wait_for_selector("body[data-ready=true]", timeout=20000)
+        page, errors = _open(browser, url)
         message = page.inner_text("#init-message")
         assert "generic head" in message, message
         conf_35 = page.evaluate("() => annotate.store.confidence('front', '3.5')")
@@ -263,11 +269,7 @@ def test_the_page_shows_the_side_facing_and_turns_the_side_round(photos, browser
     pytest.importorskip("mediapipe")
     proc, url = annotate_cli.start(*photos, "--fdp", tmp_path / "t.fdp.json")
     try:
-        page = browser.new_page(viewport={"width": 1400, "height": 860})
-        errors = []
-        page.on("pageerror", lambda e: errors.append(str(e)))
-        page.goto(url)
-        page.wait_for_selector("body[data-ready=true]", timeout=30000)
+        page, errors = _open(browser, url, timeout=30000)
         shown = page.inner_text("#side-facing")
         assert "nose points left" in shown and "confidence" in shown, shown
         before = {i: np.array(p) for i, p in _points(page)["side"]["points"].items()}
