@@ -330,7 +330,7 @@ def _build_front_only(pair: PhotoPair, focal_px, generic, ipd_mm, method, textur
                               where=where)
     if ff.dropped:
         say(f"left out {len(ff.dropped)} detected points the fitted face misses by far: "
-            + ", ".join(f"{i} ({d:.0f} mm)" for i, d in ff.dropped.items()) + "; check them in the annotations")
+            + ", ".join(f"{i} ({d['miss_mm']:.0f} mm)" for i, d in ff.dropped.items()) + "; check them in the annotations")
     if ff.focal_from == "estimated":
         say(f"focal length estimated from the face: {ff.focal_px:.0f} px")
     times = {"shape": time.perf_counter() - t0}

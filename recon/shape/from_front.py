@@ -77,9 +77,11 @@ class FrontFit:
         The posterior's cost at the solution (lower is better; compares cameras).
     candidates : dict
         Focal length tried (35 mm-equivalent mm, or ``"orthographic"``) → cost.
-    dropped : dict of str to float
+    dropped : dict of str to dict
         Detected points left out because the fitted face missed them by more than
-        :data:`OUTLIER_SDS` times their spread: FP id → miss, mm (their place is the model's).
+        :data:`OUTLIER_SDS` times their spread (their place is the model's): FP id →
+        ``{"view": "front", "miss_mm": float}``, the record the two-photo route keeps
+        (:attr:`recon.shape.calibrate.Calibration.dropped`).
     """
 
     head: Head
@@ -242,7 +244,7 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
         worst = max(free, key=lambda k: res[k] * np.sqrt(weights[k]), default=None)
         if worst is None or res[worst] * np.sqrt(weights[worst]) <= OUTLIER_SDS * point_sd_mm or len(ids) <= 8:
             break
-        dropped[ids[worst]] = round(float(res[worst]), 1)
+        dropped[ids[worst]] = {"view": "front", "miss_mm": round(float(res[worst]), 1)}
         ids, weights = ids[:worst] + ids[worst + 1:], np.delete(weights, worst)
         fits[best] = _fit_one(front, ids, weights, generic, model, width, height, tries[best], point_sd_mm, where)
     c, cam, _, moved, rms, cost, _ = fits[best]
