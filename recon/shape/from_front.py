@@ -76,7 +76,8 @@ class FrontFit:
     cost : float
         The posterior's cost at the solution (lower is better; compares cameras).
     candidates : dict
-        Focal length tried (35 mm-equivalent mm, or ``"orthographic"``) → cost.
+        Focal length tried (35 mm-equivalent mm, or ``"orthographic"``) → cost, each over
+        the same points (those left after ``dropped``).
     dropped : dict of str to dict
         Detected points left out because the fitted face missed them by more than
         :data:`OUTLIER_SDS` times their spread (their place is the model's): FP id →
@@ -186,7 +187,9 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
     drop_outliers : bool
         Leave out, one at a time and the worst first, points the fit misses by more than
         :data:`OUTLIER_SDS` spreads (weighted by their confidence), except the face's core
-        (eyes, nose, mouth, chin): for detected points nobody has checked.
+        (eyes, nose, mouth, chin): for detected points nobody has checked. The camera
+        settings are then compared again on the points kept (and points dropped under the
+        new choice), so that the focal length is chosen by the face, not by a stray point.
     under_hair : collection of str
         Skull points (:data:`recon.shape.hair.UNDER_HAIR`) whose marked place is the
         hair's outline: left out of the fit, then placed under it
@@ -223,18 +226,9 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
         tries["orthographic"] = None
         if estimate_focal:
             tries.update({f"{mm:g}": mm / FILM_DIAGONAL_MM * diag for mm in FOCAL_35MM_CANDIDATES})
-    fits = {}
-    for key, f in tries.items():
-        try:
-            fits[key] = _fit_one(front, ids, weights, generic, model, width, height, f, point_sd_mm, where)
-        except InputError:
-            if len(tries) == 1:
-                raise
-    if not fits:
-        raise InputError("no camera explains the points marked on the front photo", where=where,
-                         fix="check the points' labels (recon annotate)")
+    fits = _fit_cameras(front, ids, weights, generic, model, width, height, tries, point_sd_mm, where)
     best = min(fits, key=lambda k: fits[k].cost)
-    dropped = {}
+    dropped, settled = {}, True
     while drop_outliers:
         # A detected point the fitted face misses by far more than its spread is a
         # detection gone astray (a busy background, hair over the ear): pinning the head
@@ -243,10 +237,18 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
         free = [k for k, i in enumerate(ids) if not is_core(i)]
         worst = max(free, key=lambda k: res[k] * np.sqrt(weights[k]), default=None)
         if worst is None or res[worst] * np.sqrt(weights[worst]) <= OUTLIER_SDS * point_sd_mm or len(ids) <= 8:
-            break
+            if settled:
+                break
+            # The cameras are compared again on the points kept: a stray point's miss
+            # outweighs what tells one focal length from another, so a choice made with
+            # it is the stray point's, not the face's.
+            fits = _fit_cameras(front, ids, weights, generic, model, width, height, tries, point_sd_mm, where)
+            best, settled = min(fits, key=lambda k: fits[k].cost), True
+            continue
         dropped[ids[worst]] = {"view": "front", "miss_mm": round(float(res[worst]), 1)}
         ids, weights = ids[:worst] + ids[worst + 1:], np.delete(weights, worst)
         fits[best] = _fit_one(front, ids, weights, generic, model, width, height, tries[best], point_sd_mm, where)
+        settled = len(tries) == 1
     c, cam, _, moved, rms, cost, _ = fits[best]
     head = model.head(generic, c)
     pts = head.fp_positions()
@@ -268,6 +270,22 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
     focal_from = "given" if best == "given" else ("orthographic" if focal is None else "estimated")
     return FrontFit(head, pos, source, c, cam, focal, focal_from, rms, cost,
                     {key: round(v.cost, 2) for key, v in fits.items()}, dropped)
+
+
+def _fit_cameras(front, ids, weights, generic, model, width, height, tries, point_sd_mm, where) -> dict:
+    """:func:`_fit_one` for each camera setting of ``tries`` (key → focal px or None);
+    those no camera pose explains are left out (an error when none is left)."""
+    fits = {}
+    for key, f in tries.items():
+        try:
+            fits[key] = _fit_one(front, ids, weights, generic, model, width, height, f, point_sd_mm, where)
+        except InputError:
+            if len(tries) == 1:
+                raise
+    if not fits:
+        raise InputError("no camera explains the points marked on the front photo", where=where,
+                         fix="check the points' labels (recon annotate)")
+    return fits
 
 
 def _under_hair(front: Mapping, ids: list[str], pos: dict, camera, generic: Head) -> dict[str, np.ndarray]:

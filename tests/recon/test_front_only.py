@@ -102,6 +102,31 @@ def test_focal_length_is_chosen_among_candidates_and_reported(generic):
     assert 24 <= ff.focal_px * FILM_DIAGONAL_MM / np.hypot(1024, 1024) <= 50
 
 
+
+def test_focal_length_is_chosen_on_the_points_kept_not_on_stray_ones(generic):
+    """A distant (135 mm) photo whose ear and hairline points went astray by 0.4 IPD: the
+    cameras are compared again once the strays are left out, so the choice is the face's
+    (with the strays in, a 50 mm camera explained them best and won)."""
+    from mpeg4.catalogue import FEATURE_POINTS
+    from mpeg4.render import Camera
+
+    from recon.photos import FILM_DIAGONAL_MM
+
+    diag = np.hypot(1024, 1024)
+    pts = generic.fp_positions()
+    ids = [i for i in pts if FEATURE_POINTS[i].front != "N"]
+    cam = Camera.fit(np.array([pts[i] for i in ids]), 1024, 1024, focal_px=135 / FILM_DIAGONAL_MM * diag, margin=0.25)
+    px = {i: cam.project(pts[i][None])[0] for i in ids}
+    ipd = np.linalg.norm(px["3.5"] - px["3.6"])
+    rng = np.random.default_rng(0)
+    for i in ("11.3", "10.9", "10.6", "11.5"):
+        px[i] = px[i] + rng.normal(0, 0.4 * ipd, 2)
+    ff = fit_front(px, 1024, 1024, generic, drop_outliers=True)
+    assert {"10.6", "10.9", "11.5"} <= set(ff.dropped)
+    assert ff.focal_from == "estimated" and ff.focal_px * FILM_DIAGONAL_MM / diag >= 85
+    # Every camera's cost is over the same kept points: the 50 mm one is well behind.
+    assert ff.candidates["50"] > ff.cost + 5
+
 def _front_only_fdp(tmp_path):
     fdp = read_fdp_json(EXAMPLE_FDP)
     fdp.views = {"front": fdp.views["front"]}
