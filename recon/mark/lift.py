@@ -151,6 +151,21 @@ class _Surface:
         p, _, tri = trimesh.proximity.closest_point(sub, points)
         return keep[np.asarray(tri, dtype=np.int64)], p
 
+    def closest_on_side(self, point: np.ndarray, towards: np.ndarray) -> tuple[int, np.ndarray]:
+        """The closest surface point to ``point`` (3,) among the triangles wholly on the side
+        of it that ``towards`` (3,) points to: (triangle, (3,) point)."""
+        import trimesh
+
+        point = np.asarray(point, dtype=np.float64)
+        ahead = (self.vertices - point) @ np.asarray(towards, dtype=np.float64) >= 0
+        keep = np.flatnonzero(ahead[self.triangles].all(axis=1))
+        if not len(keep):
+            tri, p = self.closest(point[None])
+            return int(tri[0]), p[0]
+        sub = trimesh.Trimesh(self.vertices, self.triangles[keep], process=False, validate=False)
+        p, _, tri = trimesh.proximity.closest_point(sub, point[None])
+        return int(keep[int(tri[0])]), p[0]
+
     def piece_of(self, h: Hit) -> np.ndarray:
         """Vertex ids (into all parts) of the connected piece a hit lies on."""
         if not hasattr(self, "_labels"):
@@ -188,6 +203,10 @@ def _rays(camera, pixels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 RIM_POINTS = ("2.2", "2.3", "2.4", "2.5", "2.6", "2.7", "2.8", "2.9", "3.1", "3.2", "3.3", "3.4", "3.7", "3.8",
               "3.9", "3.10", "3.11", "3.12")
 
+
+#: Rim points on the upper (+1) or lower (-1) edge of their opening.
+_RIM_SIDE = {"2.2": 1.0, "2.6": 1.0, "2.7": 1.0, "3.1": 1.0, "3.2": 1.0,
+             "2.3": -1.0, "2.8": -1.0, "2.9": -1.0, "3.3": -1.0, "3.4": -1.0}
 
 _OPENING_PROBE = 0.003  # metres above and below a rim point where the surface is looked for
 _OPENING_DEPTH = 0.008  # a hit this far behind the surface above and below went through an opening
@@ -278,6 +297,13 @@ def lift(head: Head, views: Views, found: FdpFile, surface: _Surface | None = No
         ids = list(through)
         at = np.array([rays[i][2] + through[i] * rays[i][3] for i in ids])
         tris, pts = surface.closest(at)
+        up = views.cameras["front"].rotation[1]
+        for k, i in enumerate(ids):
+            # An upper rim is on the surface above the opening, a lower one below it: with the
+            # lips barely parted the nearest surface may be the other lip.
+            side = _RIM_SIDE.get(i, 0.0)
+            if side and side * float((pts[k] - at[k]) @ up) < 0:
+                tris[k], pts[k] = surface.closest_on_side(at[k], side * up)
         rays.update({i: (tris[k], pts[k], rays[i][2], rays[i][3]) for k, i in enumerate(ids)})
     for i, (tri, p, o, d) in rays.items():
         if tri < 0:
