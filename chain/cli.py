@@ -62,6 +62,13 @@ def _say(msg: str) -> None:
     typer.echo(f"fmc: {msg}", err=True)
 
 
+PART_OPTION = typer.Option(None, "--part", metavar="ROLE=PART",
+                           help="Name a part of the mesh file yourself, overriding what marking finds (repeat for "
+                                "several): e.g. --part teeth_upper=UpperTeeth --part tongue=none. Roles: skin, eye_l, "
+                                "eye_r, teeth_upper, teeth_lower, gums_upper, gums_lower, tongue, eyelashes_l, "
+                                "eyelashes_r; PART is the file's mesh name (fmc mark lists what it found).")
+
+
 @app.command()
 def mark(mesh: Path = typer.Argument(..., help="Head mesh (.glb, .gltf, .obj or .ply), in any unit and axes."),
          out: Path = typer.Option(None, "-o", "--out", help="Feature point file to write "
@@ -69,12 +76,13 @@ def mark(mesh: Path = typer.Argument(..., help="Head mesh (.glb, .gltf, .obj or 
          unit: str = typer.Option(None, help="The mesh's unit: m, cm, mm or in [default: from its size]."),
          up: str = typer.Option(None, help="The mesh's up axis: +x, -x, +y, -y, +z or -z [default: detected]."),
          forward: str = typer.Option(None, help="The axis the face looks along [default: detected]."),
-         passes: int = typer.Option(2, help="1: points from the first renders; 2: again in the frame they give.")
-         ) -> None:
+         passes: int = typer.Option(2, help="1: points from the first renders; 2: again in the frame they give."),
+         part: list[str] = PART_OPTION) -> None:
     """Find the MPEG-4 feature points of a head mesh (renders, 2D landmarks, ray casting): MESH.fdp.json."""
-    from recon.mark import mark_file
+    from recon.mark import mark_file, parse_part_options
 
-    path, result = mark_file(mesh, out, unit=unit, up=up, forward=forward, passes=passes, progress=_say)
+    path, result = mark_file(mesh, out, unit=unit, up=up, forward=forward, passes=passes, progress=_say,
+                             parts=parse_part_options(part))
     for note in result.notes:
         _say(note)
     for w in result.warnings:
@@ -99,16 +107,18 @@ def clone_cmd(source: str = SOURCE_OPTION,
                                                                 "any head mesh, marked first (fmc mark)."),
               out: Path = typer.Option(..., "-o", "--out", help="Target with the cloned motion (.glb)."),
               antialias: float = ANTIALIAS_OPTION, alignment: str = ALIGNMENT_OPTION,
-              triangulation: str = TRIANGULATION_OPTION) -> None:
+              triangulation: str = TRIANGULATION_OPTION, part: list[str] = PART_OPTION) -> None:
     """Clone morph targets and Facial Animation Tables from one head onto another (Pandzic's
     Facial Motion Cloning; see the README for the measured accuracy). A target without feature
-    points is marked first (fmc mark), with a warning that its points are unreviewed."""
+    points is marked first (fmc mark, --part naming its parts), with a warning that its points
+    are unreviewed."""
     from mpeg4.io import save_head
+    from recon.mark import parse_part_options
 
     from .clone import clone_onto
 
-    head, warnings = clone_onto(source, target, progress=_say, antialias=antialias, triangulation=triangulation,
-                                alignment=alignment)
+    head, warnings = clone_onto(source, target, progress=_say, parts=parse_part_options(part), antialias=antialias,
+                                triangulation=triangulation, alignment=alignment)
     for w in warnings:
         _say(f"warning: {w}")
     typer.echo(save_head(head, out))

@@ -6,7 +6,8 @@ comes in its own units and axes. :func:`mark` gives it both:
 1. :func:`check_mesh` refuses what is not a surface (no faces, a triangle soup, edges
    shared by many triangles).
 2. :func:`estimate_frame` brings the mesh to the MPEG-4 neutral frame (+x the face's left,
-   +y up, +z towards the viewer, metres): the unit from the head's size, the left-right
+   +y up, +z towards the viewer, metres): the unit from the head's size (once the points
+   are found, the face's proportions decide it: :func:`unit_from_face`), the left-right
    axis as the normal of the best mirror plane, the forward axis as the direction in which
    the surface ends in the narrowest cap (the nose), and up as the side where the slice a
    hand's breadth beyond the nose is deep and near the front (forehead and skull), not
@@ -26,8 +27,10 @@ comes in its own units and axes. :func:`mark` gives it both:
    eyeball at its front.
 6. :func:`refine_frame` turns the frame so the points sit as the generic head's do (a
    Umeyama rotation), and the head is rendered and lifted once more in that frame.
-7. :func:`find_parts` finds the eyes (the pieces the pupils' rays hit), teeth and tongue
-   (the pieces inside the mouth) by the points and the mesh's connectivity.
+7. :func:`find_parts` finds the eyes (the pieces the pupils' rays hit), teeth, gums and
+   tongue (the pieces nearest the generic head's, brought onto the mesh by the points) by
+   the points and the mesh's connectivity; roles a person gives (``--part ROLE=PART``,
+   :func:`given_parts`) take their place.
 8. :func:`fitted_points` fits the generic head's skin to the surface, following the
    points found on it (:func:`recon.shape.template_fit.fit_generic`: a similarity, then a
    thin-plate-spline field refined by non-rigid closest-point matching). A grey render
@@ -60,7 +63,7 @@ from __future__ import annotations
 import os
 import tempfile
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -73,14 +76,16 @@ from recon.shape.deform import fit_similarity
 
 from .checks import CHECKS, Problem, check_points
 from .decimate import MAX_MARK_TRIANGLES, carry_back, decimate
-from .frame import AXES, UNITS, Frame, check_mesh, estimate_frame, refine_frame
+from .frame import AXES, UNITS, Frame, check_mesh, estimate_frame, refine_frame, unit_from_face
 from .lift import Hit, _Surface, lift
-from .parts import _inside_binding, find_parts
+from .parts import _inside_binding, check_given_parts, find_parts, given_parts, parse_part_options
 from .points import fitted_points, hidden_points
 from .views import Views, landmark_detector, render_views, untextured_guesses
 
 __all__ = ["UNITS", "AXES", "Frame", "check_mesh", "estimate_frame", "refine_frame", "Views", "render_views",
-           "landmark_detector", "untextured_guesses", "Hit", "lift", "find_parts", "fitted_points", "hidden_points",
+           "landmark_detector", "untextured_guesses", "Hit", "lift", "find_parts", "given_parts", "check_given_parts",
+           "parse_part_options",
+           "unit_from_face", "fitted_points", "hidden_points",
            "Problem", "CHECKS", "check_points", "Marking", "mark", "mark_file", "load_mesh", "default_fdp_path",
            "MIN_POINTS", "MAX_MARK_TRIANGLES"]
 
@@ -174,7 +179,8 @@ def _detect(detect, views: Views, name: str, where: str) -> FdpFile:
 
 def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | None = None, up: str | None = None,
          forward: str | None = None, size: int = 1024, passes: int = 2, progress: Callable[[str], None] | None = None,
-         where: str | None = None, max_triangles: int = MAX_MARK_TRIANGLES) -> Marking:
+         where: str | None = None, max_triangles: int = MAX_MARK_TRIANGLES,
+         parts: Mapping[str, str | None] | None = None) -> Marking:
     """Feature points on a head mesh (see the module docstring).
 
     Parameters
@@ -189,7 +195,9 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
         (placed from the shape instead), ``detect.give`` how far the generic head's shape
         may smooth its points (:func:`fitted_points`; 0, the points kept, when absent).
     unit, up, forward : str, optional
-        See :func:`estimate_frame`.
+        See :func:`estimate_frame`. Without ``unit``, the unit the mesh's size suggests is
+        checked against the face's proportions once the points are found, which decide
+        (:func:`unit_from_face`).
     size : int
         Render height, pixels.
     passes : int
@@ -202,6 +210,9 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
     max_triangles : int
         A mesh with more triangles is marked on a decimated copy, the points then bound to
         the file's own triangles (:mod:`recon.mark.decimate`), which bounds the memory.
+    parts : mapping of str to str or None, optional
+        Roles a person gives: role (``teeth_upper``, ``eye_l`` ...) → the file's part that
+        takes it whole, or None for none (:func:`given_parts`; ``--part ROLE=PART``).
 
     Returns
     -------
@@ -221,12 +232,14 @@ def mark(mesh, detect: Callable[[Views], FdpFile] | None = None, unit: str | Non
     else:
         raw, where = load_mesh(mesh), where or os.fspath(mesh)
     warnings = check_mesh(raw, where)
+    if parts:
+        check_given_parts(raw, parts)  # before the long work, not after it
     n = sum(len(p.triangles) for p in raw.parts.values())
     if n <= max_triangles:
-        return _checked(_mark(raw, where, warnings, detect, unit, up, forward, size, passes, say), say)
+        return _checked(_mark(raw, where, warnings, detect, unit, up, forward, size, passes, say, parts), say)
     say(f"decimating the mesh's {n} triangles to at most {max_triangles} for marking")
     small, dec = decimate(raw, max_triangles)
-    result = _mark(small, where, warnings, detect, unit, up, forward, size, passes, say)
+    result = _mark(small, where, warnings, detect, unit, up, forward, size, passes, say, parts)
     say("binding the points to the file's own triangles")
     head, bindings, parts = carry_back(result.head, dict(result.head.feature_points), result.fdp.parts, raw,
                                        result.frame.matrix, dec, where)
@@ -251,7 +264,7 @@ def _checked(result: Marking, say: Callable[[str], None]) -> Marking:
 
 
 def _mark(raw: Head, where: str, warnings: list[str], detect, unit, up, forward, size: int, passes: int,
-          say: Callable[[str], None]) -> Marking:
+          say: Callable[[str], None], given: Mapping[str, str | None] | None = None) -> Marking:
     """:func:`mark` on a mesh as read (and checked)."""
     say("finding the neutral frame")
     frame = estimate_frame(raw, unit, up, forward, where)
@@ -302,8 +315,19 @@ def _mark(raw: Head, where: str, warnings: list[str], detect, unit, up, forward,
                 frame, angle = refine_frame(frame, {i: h.point for i, h in hits.items()},
                                             {i: h.confidence for i, h in hits.items()})
                 head = place_mesh(raw, frame.matrix, None, where)
-        say("finding the eyes, teeth and tongue")
+        if unit is None:
+            # The size suggested the unit; the face's proportions decide it.
+            found_unit = unit_from_face(frame, {i: h.point for i, h in hits.items() if h.confidence > 0})
+            if found_unit is not None and abs(np.log(found_unit[0])) > 1e-9:
+                factor, name_u, note = found_unit
+                say(note)
+                frame = frame.scaled(factor, name_u, note)
+                head = place_mesh(raw, frame.matrix, None, where)
+                hits = {i: replace(h, point=h.point * factor) for i, h in hits.items()}
+        say("finding the eyes, teeth, gums and tongue")
         parts, part_notes = find_parts(head, hits)
+        if given:
+            parts, part_notes = given_parts(head, parts, part_notes, given)
         head = place_mesh(raw, frame.matrix, parts, where)
         views = render_views(head, tmp, size, frame.matrix, frame.nose)
         found = _detect(detect, views, name, where)
@@ -349,7 +373,8 @@ def _mark(raw: Head, where: str, warnings: list[str], detect, unit, up, forward,
 
 
 def mark_file(mesh, out=None, detect=None, unit=None, up=None, forward=None, passes: int = 2,
-              progress: Callable[[str], None] | None = None) -> tuple[Path, Marking]:
+              progress: Callable[[str], None] | None = None,
+              parts: Mapping[str, str | None] | None = None) -> tuple[Path, Marking]:
     """``fmc mark``: mark a head mesh and write its ``fdp.json``.
 
     A file already at ``out`` is kept as ``out.bak`` before it is replaced (atomically).
@@ -370,7 +395,8 @@ def mark_file(mesh, out=None, detect=None, unit=None, up=None, forward=None, pas
     out = default_fdp_path(mesh) if out is None else Path(out)
     if out.is_dir():
         raise InputError("expected a file name, found a folder", where=out, fix="give a name such as head.fdp.json")
-    result = mark(mesh, detect=detect, unit=unit, up=up, forward=forward, passes=passes, progress=progress)
+    result = mark(mesh, detect=detect, unit=unit, up=up, forward=forward, passes=passes, progress=progress,
+                  parts=parts)
     swapped = [p for p in result.problems if p.check == "left_right"]
     if swapped:
         # An fdp.json with the face's sides swapped is refused by every reader: say what to

@@ -19,7 +19,7 @@ from mpeg4.errors import InputError
 from mpeg4.head import Head
 from recon.shape.deform import fit_similarity
 
-__all__ = ["UNITS", "AXES", "check_mesh", "Frame", "estimate_frame", "refine_frame"]
+__all__ = ["UNITS", "AXES", "check_mesh", "Frame", "estimate_frame", "refine_frame", "unit_from_face", "FACE_EYES_M"]
 
 #: Units a mesh may be in (metres per unit). Detection chooses among m, cm and mm.
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "in": 0.0254}
@@ -32,6 +32,14 @@ _NOSE_CAP = 0.015  # metres: depth of the cap in which the nose ends
 _SLICE = 0.105  # metres beyond the nose: the forehead and skull above, under the chin below
 _CLOSE_CALL = 0.03  # metres: up scores nearer than this leave it to the feature points
 _NOT_A_NOSE = 0.8  # a narrowest end at least this share of the next one is no nose
+
+#: The distance between the centres of an adult's eyes (each the midpoint of its corners,
+#: 3.7-3.11 and 3.8-3.12), metres: 63 mm on the generic head, and adult pupils are 54-74 mm
+#: apart. The face's proportions set a mesh's unit by it (:func:`unit_from_face`).
+FACE_EYES_M = 0.063
+#: A unit is taken when it puts the eyes within this factor of :data:`FACE_EYES_M` (a
+#: child's or a stylised head's eyes too); units a factor of 10 apart cannot both be.
+_EYES_SLACK = 2.0
 
 
 def _axis_name(v: np.ndarray) -> str:
@@ -176,6 +184,57 @@ class Frame:
         nose = None if self.nose is None else rotation @ self.nose + offset
         return Frame(r, self.scale, rotation @ self.offset + offset, self.unit, _axis_name(r[1]), _axis_name(r[2]),
                      notes, nose)
+
+    def scaled(self, factor: float, unit: str, note: str) -> Frame:
+        """This frame followed by a scaling of the neutral frame by ``factor`` about its
+        origin (a new unit for the file, named ``unit``; the earlier unit's note replaced)."""
+        notes = [n for n in self.notes if not n.startswith("unit:")] + [note]
+        nose = None if self.nose is None else self.nose * factor
+        return Frame(self.rotation, self.scale * factor, self.offset * factor, unit, self.up, self.forward, notes,
+                     nose, self.close_call)
+
+
+def unit_from_face(frame: Frame, points: Mapping[str, np.ndarray]) -> tuple[float, str, str] | None:
+    """The mesh's unit read from the face's proportions: how far apart its eyes are.
+
+    A mesh's size says little of its unit when it carries hair, a neck, shoulders or a body
+    (a head-and-shoulders bust in its own units came out half a head's size); the eyes'
+    distance varies far less between people. Among m, cm and mm, the unit that puts the
+    eye centres (the midpoints of each eye's corners, 3.7-3.11 and 3.8-3.12) nearest
+    :data:`FACE_EYES_M` apart is taken if within a factor of 2; failing all three (a model
+    in its own units), the mesh is scaled so that they are that far apart.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame the points are in.
+    points : mapping of str to (3,) float
+        Feature points found on the mesh, ``frame``'s neutral coordinates, metres.
+
+    Returns
+    -------
+    (factor, unit, note) or None
+        The scaling of ``frame``'s neutral coordinates that makes them metres, the unit's
+        name and a sentence saying why; None when the eyes' corners were not all found.
+    """
+    corners = ("3.7", "3.11", "3.8", "3.12")
+    if not all(i in points for i in corners):
+        return None
+    p = {i: np.asarray(points[i], dtype=np.float64) for i in corners}
+    eyes_file = float(np.linalg.norm(p["3.7"] + p["3.11"] - p["3.8"] - p["3.12"])) / 2 / frame.scale
+    if not eyes_file > 0:
+        return None
+    unit = min(("m", "cm", "mm"), key=lambda u: abs(np.log(eyes_file * UNITS[u] / FACE_EYES_M)))
+    if abs(np.log(eyes_file * UNITS[unit] / FACE_EYES_M)) <= np.log(_EYES_SLACK):
+        metres = UNITS[unit]
+        note = (f"unit: {unit} (from the face: its eyes are {eyes_file:.4g} units apart, "
+                f"{eyes_file * metres * 1000:.0f} mm in {unit})")
+    else:
+        metres = FACE_EYES_M / eyes_file
+        unit = f"{metres:.6g} m"
+        note = (f"unit: none of m, cm, mm (the face's eyes are {eyes_file:.4g} units apart); scaled so that they are "
+                f"{FACE_EYES_M * 1000:.0f} mm apart (give --unit if the file has one)")
+    return metres / frame.scale, unit, note
 
 
 def _mirror_residual(points: np.ndarray, normal: np.ndarray, tree) -> tuple[float, float]:

@@ -1,6 +1,8 @@
 """The head's parts found by the feature points and the mesh's connectivity (:func:`find_parts`).
 
-The eyes are the pieces the pupils' rays hit; teeth and tongue the pieces inside the mouth.
+The eyes are the pieces the pupils' rays hit; teeth, gums and tongue the pieces nearest the
+generic head's, brought onto the mesh by the face's points. A person may name any part
+instead (:func:`given_parts`, ``--part ROLE=PART``).
 """
 
 from __future__ import annotations
@@ -8,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.errors import InputError
@@ -16,7 +19,20 @@ from mpeg4.io.fdp_json import PartSource
 
 from .lift import Hit, _pieces
 
-__all__ = ["find_parts"]
+__all__ = ["find_parts", "given_parts", "check_given_parts", "parse_part_options", "MOUTH_ROLES", "MOUTH_MATCH_ES0"]
+
+#: The parts inside the mouth, named as the generic head names them.
+MOUTH_ROLES = ("teeth_upper", "teeth_lower", "gums_upper", "gums_lower", "tongue")
+
+#: A piece inside the mouth takes the role of the generic head's part nearest to it when
+#: its vertices lie, by their median, within this share of the eye separation (ES0) of
+#: that part (the generic head brought onto the mesh by the face's points): about 7 mm on
+#: an adult. Teeth, gums and tongue lie 5-15 mm apart; a throat, a mouth bag or hair lies
+#: further from all of them and keeps its own name.
+MOUTH_MATCH_ES0 = 0.11
+
+# Face points that place the generic head's mouth on a mesh: around the mouth and nose.
+_MOUTH_FRAME_GROUPS = (2, 8, 9)
 
 
 def _sphere_centre(points: np.ndarray) -> np.ndarray:
@@ -34,9 +50,11 @@ def find_parts(head: Head, hits: Mapping[str, Hit]) -> tuple[dict[str, PartSourc
       other role takes);
     - ``eye_l``/``eye_r``: the piece each pupil's ray hits, when it is not the skin, and the
       pieces inside it; centred on the sphere fitted to the largest;
-    - ``teeth_upper``/``teeth_lower``/``tongue``: the pieces inside the mouth (between the
-      mouth corners, from the nose base to the chin, behind the lips), above and below the
-      mouth line; the tongue is the piece below that is longest front to back for its width.
+    - ``teeth_upper``/``teeth_lower``/``gums_upper``/``gums_lower``/``tongue``: each of the
+      other pieces that lies, by the median of its vertices, within
+      :data:`MOUTH_MATCH_ES0` of the eye separation of the generic head's part of that name
+      (the generic head brought onto the mesh by its points around the mouth and nose);
+      the pieces near none (a throat, a mouth bag, hair, lashes) keep their file's names.
 
     Parameters
     ----------
@@ -82,41 +100,12 @@ def find_parts(head: Head, hits: Mapping[str, Hit]) -> tuple[dict[str, PartSourc
                   and (bbox(k)[0] >= lo - 1e-3).all() and (bbox(k)[1] <= hi + 1e-3).all()]
         roles[role] = [key] + inside
         taken.update(roles[role])
-    need = ("8.3", "8.4", "9.15", "2.1")
-    if all(i in hits for i in need):
-        ml, mr = hits["8.3"].point, hits["8.4"].point
-        half = 0.75 * abs(ml[0] - mr[0])
-        top, bottom = hits["9.15"].point[1], hits["2.1"].point[1]
-        lips = max(ml[2], mr[2]) + 0.01
-        line = np.mean([hits[i].point[1] for i in ("2.2", "2.3", "8.3", "8.4") if i in hits])
-        upper, lower = [], []
-        for k in all_keys:
-            if k in taken:
-                continue
-            lo, hi = bbox(k)
-            c = 0.5 * (lo + hi)
-            ext = hi - lo
-            if (abs(c[0]) < half and bottom < c[1] < top and c[2] < lips and ext[0] < 2.5 * half
-                    and ext[1] < (top - bottom)):
-                (upper if c[1] > line else lower).append(k)
-        tongue = None
-        if len(lower) >= 2:
-            def shape(k):
-                lo, hi = bbox(k)
-                e = hi - lo
-                return abs(0.5 * (lo + hi)[0]), e[2] / max(e[0], 1e-9), float(np.prod(e))
-            # On the midline, longer front to back than wide, the biggest such piece.
-            midline = [k for k in lower if shape(k)[0] < 0.003 and shape(k)[1] > 1.1]
-            if midline:
-                tongue = max(midline, key=lambda k: shape(k)[2])
-                lower.remove(tongue)
-        for role, keys in (("teeth_upper", upper), ("teeth_lower", lower), ("tongue", [tongue] if tongue else [])):
-            if keys:
-                roles[role] = keys
-                taken.update(keys)
+    for role, keys in _mouth_roles(head, hits, pieces, [k for k in all_keys if k not in taken]).items():
+        roles[role] = keys
+        taken.update(keys)
     # Whole file parts where a role has all of a part's pieces; vertex lists otherwise.
     out: dict[str, PartSource] = {}
-    for role in ("skin", "eye_l", "eye_r", "teeth_upper", "teeth_lower", "tongue"):
+    for role in ("skin", "eye_l", "eye_r") + MOUTH_ROLES:
         keys = [skin] if role == "skin" else roles.get(role)
         if not keys:
             continue
@@ -145,6 +134,115 @@ def find_parts(head: Head, hits: Mapping[str, Hit]) -> tuple[dict[str, PartSourc
         if s.vertices is None and any(o.source == s.source for r, o in out.items() if r != role):
             del out[role]
     return out, notes
+
+
+def parse_part_options(options) -> dict[str, str | None]:
+    """``--part ROLE=PART`` options as role → the file's part (None for ``ROLE=`` or
+    ``ROLE=none``: no part has that role).
+
+    Raises
+    ------
+    InputError
+        An option without ``=``, a role that is no head part's name, a role given twice.
+    """
+    from mpeg4.head import PART_NAMES
+
+    out: dict[str, str | None] = {}
+    for opt in options or ():
+        role, eq, name = str(opt).partition("=")
+        role, name = role.strip(), name.strip()
+        if not eq or not role:
+            raise InputError(f"--part {opt!r} is not ROLE=PART", where="--part",
+                             fix="e.g. --part teeth_upper=UpperTeeth (the file's part), or --part tongue=none")
+        if role not in PART_NAMES:
+            raise InputError(f"--part {opt!r}: {role!r} is not a part's role", where="--part",
+                             fix=f"use one of {', '.join(PART_NAMES)}")
+        if role in out:
+            raise InputError(f"--part gives the role {role!r} twice", where="--part", fix="give each role once")
+        out[role] = None if name.lower() in ("", "none") else name
+    return out
+
+
+def check_given_parts(head: Head, given: Mapping[str, str | None]) -> None:
+    """Refuse given roles (:func:`parse_part_options`) that name a part the mesh ``head``
+    (as the file has it) does not have, or one part for two roles."""
+    names = [n for n in given.values() if n is not None]
+    for role, name in given.items():
+        if name is not None and name not in head.parts:
+            raise InputError(f"--part {role}={name}: the mesh has no part {name!r}", where="--part",
+                             fix=f"its parts are {', '.join(sorted(head.parts))}")
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise InputError(f"--part gives the part {twice[0]!r} two roles", where="--part", fix="give each part one role")
+
+
+def given_parts(head: Head, found: Mapping[str, PartSource], notes: list[str],
+                given: Mapping[str, str | None]) -> tuple[dict[str, PartSource], list[str]]:
+    """The parts :func:`find_parts` found, with the roles a person gave put in their place.
+
+    Parameters
+    ----------
+    head : Head
+        The mesh in the neutral frame with the file's part names (as :func:`find_parts` had it).
+    found, notes : what :func:`find_parts` returned.
+    given : mapping of str to str or None
+        Role → the file's part that takes it whole (:func:`parse_part_options`); None: no
+        part takes the role. A file part given a role is taken from any other role.
+
+    Raises
+    ------
+    InputError
+        A part the file does not have; one part given two roles.
+    """
+    check_given_parts(head, given)
+    names = [n for n in given.values() if n is not None]
+    out = {r: p for r, p in found.items() if r not in given and p.source not in names}
+    kept = [n for n in notes if n.split(":")[0] in out]
+    for role, name in given.items():
+        if name is None:
+            kept.append(f"{role}: none (given)")
+            continue
+        centre = _sphere_centre(head.parts[name].vertices) if role.startswith("eye_") else None
+        out[role] = PartSource(name, None, centre)
+        kept.append(f"{role}: part '{name}' (given)")
+    if "skin" not in out:
+        raise InputError("no part is the skin", where="--part",
+                         fix="give the face's part as the skin: --part skin=PART")
+    # The skin first, as find_parts orders them.
+    return {"skin": out.pop("skin"), **out}, kept
+
+
+def _mouth_roles(head: Head, hits: Mapping[str, Hit], pieces: Mapping[str, np.ndarray],
+                 candidates: list[tuple[str, int]]) -> dict[str, list[tuple[str, int]]]:
+    """Teeth, gums and tongue among ``candidates`` (file part, piece label): each piece takes
+    the role of the generic head's mouth part nearest to it (:data:`MOUTH_ROLES`), the
+    generic head brought onto the mesh by the similarity that best fits its feature points
+    around the mouth and nose to the points found; a piece nearer none of them than
+    :data:`MOUTH_MATCH_ES0` of the eye separation takes no role (a throat, hair, a body)."""
+    from mpeg4.generic_head import load_generic_head
+    from recon.shape.deform import fit_similarity
+
+    generic = load_generic_head()
+    gp = generic.fp_positions()
+    ids = [i for i, h in hits.items() if i in gp and FEATURE_POINTS[i].group in _MOUTH_FRAME_GROUPS
+           and h.how != "generic" and h.confidence > 0]
+    if len(ids) < 6 or not candidates:
+        return {}
+    sim = fit_similarity(np.array([gp[i] for i in ids]), np.array([hits[i].point for i in ids]))
+    es0 = sim.scale * float(np.linalg.norm(gp["3.5"] - gp["3.6"]))
+    refs = [(role, cKDTree(sim(generic.parts[role].vertices))) for role in MOUTH_ROLES if role in generic.parts]
+    out: dict[str, list[tuple[str, int]]] = {}
+    for key in candidates:
+        n, k = key
+        v = head.parts[n].vertices[pieces[n] == k]
+        # A piece much bigger than the mouth (a body, a hair cap) cannot be inside it.
+        if np.ptp(v, axis=0).max() > 2.5 * es0:
+            continue
+        near = [(float(np.median(tree.query(v)[0])), role) for role, tree in refs]
+        d, role = min(near)
+        if d <= MOUTH_MATCH_ES0 * es0:
+            out.setdefault(role, []).append(key)
+    return out
 
 
 def _inside_binding(part, point: np.ndarray) -> FeaturePointBinding:

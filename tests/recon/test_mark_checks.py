@@ -173,7 +173,9 @@ def test_an_unreliable_marking_is_written_and_says_so(mouth_at_the_nose):
     gap = next(p for p in result.problems if p.check == "nose_above_mouth")
     assert _outside(gap) and gap.value < 0.003  # metres: the nose tip within 3 mm of the lip's height
     saved = read_fdp_json(out)
-    assert len(saved.points3d) == len(result.head.feature_points) >= 80  # written all the same
+    # Written all the same; the tongue's and upper teeth's points may be missing: no piece
+    # lies where the generic head's mouth parts go when the mouth points sit at the nose.
+    assert len(saved.points3d) == len(result.head.feature_points) >= 76
     recorded = saved.metadata["mark3d"]["unreliable"]
     assert recorded == [p.message for p in result.problems]
     assert any(m.startswith("nose_above_mouth: ") and "9.3" in m and "8.1" in m for m in recorded)
