@@ -23,11 +23,13 @@ from fmc.clone.parts import rigid_motion
 from mpeg4.catalogue import FAPS
 from mpeg4.fat import apply_fat, fap_unit
 from mpeg4.head import Head
+from mpeg4.neck import neck_fade
 
 __all__ = ["HEAD_TURN_FAPS", "allowed_parts", "part_leaks", "eyeball_centre_shift", "fp_prediction",
            "fp_conformance", "lid_overlap", "region_over_fp", "SurfaceChecks"]
 
-#: The head rotations (about 7.1): everything turns with them.
+#: The head rotations (about 7.1): every part turns with them, the skin faded over the neck
+#: (:func:`mpeg4.neck.neck_fade`: the shoulders stay).
 HEAD_TURN_FAPS = (48, 49, 50)
 
 
@@ -55,6 +57,7 @@ def part_leaks(head: Head, value: float = 300.0, faps=None) -> dict[int, dict[st
         :func:`allowed_parts` that move at all (an empty dict for a clean FAP).
     """
     base = _neutral(head)
+    fade = neck_fade(head).fade
     out = {}
     for n in (range(3, 69) if faps is None else faps):
         if (n, 0) not in head.fat:
@@ -62,7 +65,7 @@ def part_leaks(head: Head, value: float = 300.0, faps=None) -> dict[int, dict[st
         allowed = allowed_parts(head, n)
         worst: dict[str, float] = {}
         for v in (-value, value):
-            moved = apply_fat(head.fat, base, {n: v}, head.fapu)
+            moved = apply_fat(head.fat, base, {n: v}, head.fapu, neck_fade=fade)
             for name in base:
                 if name in allowed:
                     continue
@@ -159,7 +162,7 @@ def region_over_fp(head: Head, n: int, value: float, part: str = "skin") -> floa
     point does not move."""
     fp = FAPS[n].feature_points[0]
     base = _neutral(head)
-    moved = apply_fat(head.fat, base, {n: value}, head.fapu)
+    moved = apply_fat(head.fat, base, {n: value}, head.fapu, neck_fade=neck_fade(head).fade)
     own = float(np.linalg.norm(head.fp_position(fp, moved) - head.fp_position(fp)))
     if own < 1e-9 or part not in moved:
         return float("nan")

@@ -19,7 +19,10 @@ played, and says what it changed:
 - **Turns** (:data:`TURN_LIMITS_DEG`): eyeball and head rotations clamped to a range of
   motion. The standard gives none; these are this project's choice, round figures inside
   a typical adult's range (eyes about 45° each way, the head 80° of yaw, 60° of pitch,
-  40° of roll).
+  40° of roll). The head turns about 7.1 and the turn fades over the neck to nothing at
+  the shoulders (:mod:`mpeg4.neck`); on the generic head no neck triangle turns over up
+  to 80° of yaw and 40° of pitch or roll, while pitch at its 60° limit folds the sides of
+  the neck (32 triangles at +60°: ``tests/fmc/test_neck.py``).
 """
 
 from __future__ import annotations

@@ -4,8 +4,9 @@
 per-interval displacement slopes of every FaceDefMesh (metres per FAP unit, over all the
 head's vertices stacked), so that a frame is: the signed overlaps of each active table's
 intervals (the section-5 rule, :func:`mpeg4.fat.signed_overlaps`), one sparse product over
-the active columns, then the FaceDefTransforms (parts first, the whole head last), exactly
-as :func:`mpeg4.fat.apply_fat` does it, only without touching the tables again.
+the active columns, then the FaceDefTransforms (parts first, the whole head last, faded
+over the neck by :func:`mpeg4.neck.neck_fade`), exactly as :func:`mpeg4.fat.apply_fat`
+does it with that fade, only without touching the tables again.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ except ImportError:  # pragma: no cover - other scipy layouts
 from mpeg4.errors import InputError
 from mpeg4.fat import _key, fap_unit
 from mpeg4.head import Head
+from mpeg4.neck import blend_turn, joint_weights, neck_fade
 
 from .frames import FrameDecoder
 
@@ -111,6 +113,13 @@ class Player:
                 self._blocks[key, sign] = (self.matrix[:, [c for c, _, _ in chosen]].tocsc(), borders, pick)
         # Whole-head transforms go last, after the parts' own (apply_fat's order).
         self.transforms.sort(key=lambda kt: (kt[1].part is None, kt[0]))
+        # Each vertex's share of the head turn: the head turns, the shoulders stay.
+        whole = [t for _, t, _ in self.transforms if t.part is None]
+        self.turn_weights = None
+        if whole:
+            fade = neck_fade(head).fade
+            self.turn_weights = np.concatenate([joint_weights(fade[n]) for n in self.part_names])
+            self.turn_pivot = next((t.centre for t in whole if t.kind == "rotation"), whole[0].centre)
 
     def vertices(self, values: Mapping) -> np.ndarray:
         """(N, 3) vertices of all parts stacked (part order of the head) for one frame.
@@ -159,7 +168,7 @@ class Player:
                     sl = self.slices[t.part]
                     out[sl] = t.apply(out[sl], value, unit)
             if whole is not None:
-                out = (whole[0] @ out_t + whole[1][:, None]).T
+                out = blend_turn(out, self.turn_weights, whole[0], whole[1], self.turn_pivot)
         return out
 
     def part_vertices(self, stacked: np.ndarray) -> dict[str, np.ndarray]:

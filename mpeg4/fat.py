@@ -35,6 +35,7 @@ from .catalogue import FAPS, VISEMES, EXPRESSIONS, fap as fap_entry
 from .errors import InputError
 from .fapu import FAPU
 from .head import SparseDisplacement
+from .neck import blend_turn, joint_weights
 
 __all__ = [
     "FaceDefMesh", "FaceDefTransform", "FaceDefTable", "FAT",
@@ -241,12 +242,15 @@ def _key(k) -> tuple[int, int]:
     return (int(k[0]), int(k[1])) if isinstance(k, tuple) else (int(k), 0)
 
 
-def apply_fat(fat: FAT, vertices: Mapping[str, np.ndarray], values: Mapping, fapu: FAPU) -> dict[str, np.ndarray]:
+def apply_fat(fat: FAT, vertices: Mapping[str, np.ndarray], values: Mapping, fapu: FAPU,
+              neck_fade: Mapping[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
     """Deform a head's parts by a set of FAP values (reference section 5).
 
     Mesh displacements of all active tables add up (superposition) on the neutral
     vertices; then the transforms are applied, part-specific ones in FAP order and the
-    whole-head ones (part None, the head rotations about 7.1) last.
+    whole-head ones (part None, the head rotations about 7.1) last, composed into one
+    motion that each vertex follows by its share ``neck_fade`` (:func:`mpeg4.neck.blend_turn`:
+    the shoulders stay, the head turns fully).
 
     Parameters
     ----------
@@ -258,6 +262,10 @@ def apply_fat(fat: FAT, vertices: Mapping[str, np.ndarray], values: Mapping, fap
         value 0..63. Values of FAPs without a table are ignored.
     fapu : FAPU
         The head's FAPU.
+    neck_fade : mapping of str to (N,) array, optional
+        Per part, each neutral vertex's share of the head turn in [0, 1]
+        (``mpeg4.neck.neck_fade(head).fade``); parts not given, or all of them when None,
+        turn rigidly with the head (the standard's whole-face rotation).
 
     Returns
     -------
@@ -284,9 +292,18 @@ def apply_fat(fat: FAT, vertices: Mapping[str, np.ndarray], values: Mapping, fap
                 late.append((t, value, unit))
             elif t.part in out:
                 out[t.part] = t.apply(out[t.part], value, unit)
-    for t, value, unit in late:
+    if late:
+        a, b = np.eye(3), np.zeros(3)
+        for t, value, unit in late:  # composed in FAP order: one motion of the head
+            ta, tb = t.affine(value, unit)
+            a, b = ta @ a, ta @ b + tb
+        pivot = next((t.centre for t, _, _ in late if t.kind == "rotation"), late[0][0].centre)
         for name in out:
-            out[name] = t.apply(out[name], value, unit)
+            fade = None if neck_fade is None else neck_fade.get(name)
+            if fade is None:
+                out[name] = out[name] @ a.T + b
+            else:
+                out[name] = blend_turn(out[name], joint_weights(fade), a, b, pivot)
     return out
 
 

@@ -7,6 +7,7 @@ from fmc.play import Player
 from mpeg4 import InputError, apply_fat
 from mpeg4.generic_head import load_generic_head
 from mpeg4.io import parse_fap
+from mpeg4.neck import neck_fade
 
 
 @pytest.fixture(scope="module")
@@ -17,6 +18,7 @@ def head(authored_head):
 def test_player_equals_apply_fat(head):
     player = Player(head)
     neutral = {n: p.vertices for n, p in head.parts.items()}
+    fade = neck_fade(head).fade  # the head turns fade over the neck in both
     rng = np.random.default_rng(0)
     for _ in range(6):
         faps = rng.choice(np.arange(3, 69), 12, replace=False)
@@ -25,7 +27,7 @@ def test_player_equals_apply_fat(head):
         values[(1, int(rng.integers(0, 15)))] = float(rng.uniform(0, 63))
         values[(2, int(rng.integers(0, 7)))] = float(rng.uniform(0, 63))
         # The player fills a lip FAP's missing inner/outer partner, as streams mean it.
-        a = apply_fat(head.fat, neutral, player.decode(values), head.fapu)
+        a = apply_fat(head.fat, neutral, player.decode(values), head.fapu, neck_fade=fade)
         b = player.part_vertices(player.vertices(values))
         assert max(np.abs(a[n] - b[n]).max() for n in a) < 1e-12
 

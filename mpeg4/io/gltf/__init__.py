@@ -15,12 +15,19 @@ Layout of a head file:
   without data (zeros, as the format allows);
 - ``extras["mpeg4"]`` on the root node: part list, feature point bindings (and positions,
   for people reading the JSON), FAPU in metres, which targets stand for which FAP interval,
-  the FAT transforms, and the head's metadata.
+  the FAT transforms, and the head's metadata;
+- with an animation that turns the head, the head mesh is skinned: a ``shoulders`` joint
+  at the neck's cut and joints at 7.1 sharing the turn, weighted per vertex so the turn
+  fades over the neck as the decoder plays it (:mod:`mpeg4.neck`); the eyeballs' nodes
+  hang under the ``pivot`` joint.
 
-Reading is in :mod:`~mpeg4.io.gltf.read`, writing in :mod:`~mpeg4.io.gltf.write`.
+Reading is in :mod:`~mpeg4.io.gltf.read`, writing in :mod:`~mpeg4.io.gltf.write`; a
+file's animation is evaluated as glTF defines it by :func:`~mpeg4.io.gltf.pose.posed_parts`.
 """
 
 from .read import FORMAT_VERSION, GlbAnimation, read_glb, read_glb_animation, read_glb_feature_points
+from .pose import posed_parts
 from .write import write_glb
 
-__all__ = ["write_glb", "read_glb", "FORMAT_VERSION", "GlbAnimation", "read_glb_animation", "read_glb_feature_points"]
+__all__ = ["write_glb", "read_glb", "FORMAT_VERSION", "GlbAnimation", "read_glb_animation", "read_glb_feature_points",
+           "posed_parts"]

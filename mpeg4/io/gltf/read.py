@@ -36,9 +36,10 @@ class GlbAnimation:
     weights : dict of str to (F,) float
         Morph target name → weight per frame (targets not listed stay at 0).
     rotations : dict of str to (F, 4) float
-        Node name → unit quaternion (x, y, z, w) per frame. ``"pivot"`` turns the whole
-        head about ``pivot`` (the point 7.1); ``"eye_l"``/``"eye_r"`` turn the eyes about
-        their centres.
+        Node name → unit quaternion (x, y, z, w) per frame. ``"pivot"`` turns the head
+        about ``pivot`` (the point 7.1), faded over the neck (:func:`write_glb` skins the
+        head mesh and adds the ``"neck_j"`` joints' shares); ``"eye_l"``/``"eye_r"`` turn
+        the eyes about their centres.
     pivot : (3,) float
         Centre of the whole-head rotation, metres.
     name : str
@@ -73,9 +74,9 @@ def _read_animation(r: _Reader) -> GlbAnimation | None:
         sm = a.samplers[ch.sampler]
         times = r.accessor(sm.input).astype(np.float64)
         if out is None:
-            pivot = next((n.translation for n in gltf.nodes if n.name == "pivot"), None)
+            pivot = next((k for k, n in enumerate(gltf.nodes) if n.name == "pivot"), None)
             out = GlbAnimation(times, name=a.name or "animation",
-                               pivot=np.zeros(3) if pivot is None else np.asarray(pivot, float))
+                               pivot=np.zeros(3) if pivot is None else _rest_position(gltf, pivot))
         node = gltf.nodes[ch.target.node]
         values = r.accessor(sm.output).astype(np.float64)
         if ch.target.path == "weights":
@@ -86,6 +87,19 @@ def _read_animation(r: _Reader) -> GlbAnimation | None:
         elif ch.target.path == "rotation":
             out.rotations[node.name] = values.reshape(len(times), 4)
     return out
+
+
+def _rest_position(gltf, index: int) -> np.ndarray:
+    """(3,) where node ``index``'s origin sits at rest, its parents' transforms applied
+    (the ``pivot`` hangs under the ``shoulders`` joint in a skinned head)."""
+    parent = {c: k for k, n in enumerate(gltf.nodes) for c in (n.children or [])}
+    m = _node_matrix(gltf.nodes[index])
+    seen = {index}
+    while index in parent and parent[index] not in seen:
+        index = parent[index]
+        seen.add(index)
+        m = _node_matrix(gltf.nodes[index]) @ m
+    return m[:3, 3].copy()
 
 
 class _Reader:

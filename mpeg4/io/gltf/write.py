@@ -12,6 +12,7 @@ from ...catalogue import FP_IDS
 from ...errors import InputError
 from ...fat import FaceDefTransform, MorphSpec, fat_to_morph_targets
 from ...head import Head, SparseDisplacement
+from ...neck import NECK_SEGMENTS, joint_weights, neck_fade, quat_power
 from ..atomic import atomic_write
 from .read import FORMAT_VERSION, GlbAnimation
 
@@ -67,7 +68,7 @@ class _Writer:
                  what: str = "a value") -> int:
         g = self.g
         array = _check_finite(np.ascontiguousarray(array), what)
-        ctype = {np.float32: _FLOAT, np.uint32: _UINT, np.uint16: _USHORT}[array.dtype.type]
+        ctype = {np.float32: _FLOAT, np.uint32: _UINT, np.uint16: _USHORT, np.uint8: _UBYTE}[array.dtype.type]
         acc = g.Accessor(bufferView=self.view(array.tobytes(), target), componentType=ctype,
                          count=len(array), type=kind)
         if minmax:
@@ -120,7 +121,13 @@ def write_glb(head: Head, path: str | os.PathLike, animation: GlbAnimation | Non
     path : str or os.PathLike
         Destination, normally ``*.glb``.
     animation : GlbAnimation, optional
-        Keyframes; the head node then hangs under a ``pivot`` node at the rotation centre.
+        Keyframes. When they turn the head (``rotations["pivot"]``), the head mesh is
+        skinned so that the turn fades over the neck as the decoder plays it
+        (:mod:`mpeg4.neck`): a root joint ``shoulders`` at the neck's cut that stays, and
+        joints ``neck_1`` … ``neck_{K-1}`` and ``pivot`` at 7.1 turning by ``j/K`` of the
+        head turn (``pivot`` the whole of it); ``JOINTS_0``/``WEIGHTS_0`` hold each
+        vertex's two neighbouring joints. The eyeballs' nodes hang under ``pivot``.
+        Otherwise the head node hangs under a ``pivot`` node at the rotation centre.
     """
     try:
         with np.errstate(over="ignore"):  # a value beyond float32 becomes inf, refused below
@@ -161,6 +168,9 @@ def _glb_bytes(head: Head, animation: GlbAnimation | None) -> bytes:
             groups[0][1].append(name)
         else:
             groups.append((name, [name], part.centre))
+    # A turn that fades over the neck: the head mesh is skinned (see write_glb).
+    fade = neck_fade(head) if animation is not None and "pivot" in animation.rotations else None
+    eye_nodes = []
     part_info = []
     mesh_target_names: dict[str, list[str]] = {}
     gltf.nodes.append(g.Node(name="head", children=[]))
@@ -194,6 +204,17 @@ def _glb_bytes(head: Head, animation: GlbAnimation | None) -> bytes:
             gltf.materials.append(material)
             prim = g.Primitive(attributes=attrs, indices=w.accessor(idx, "SCALAR", _ELEMENT_ARRAY_BUFFER),
                                material=len(gltf.materials) - 1, mode=4)
+            if fade is not None and gi == 0:
+                s = np.clip(fade.fade[pname], 0.0, 1.0)
+                first = np.minimum(np.floor(s * NECK_SEGMENTS), NECK_SEGMENTS - 1).astype(np.int64)
+                # The two joints that weigh in; a slot of weight 0 names joint 0, as glTF asks.
+                joints = np.c_[first, first + 1, np.zeros((len(s), 2), np.int64)]
+                weights = np.take_along_axis(joint_weights(s), joints, axis=1).astype(np.float32)
+                weights[:, 2:] = 0.0
+                joints[weights == 0] = 0
+                attrs.JOINTS_0 = w.accessor(joints.astype(np.uint8), "VEC4", _ARRAY_BUFFER)
+                attrs.WEIGHTS_0 = w.accessor(weights, "VEC4", _ARRAY_BUFFER,
+                                             what=f"part '{pname}': the skin weights of vertex")
             if mesh_targets:
                 prim.targets = [{"POSITION": w.sparse_target(part.n_vertices, targets[t].get(pname),
                                                              f"morph target '{t}' of part '{pname}': displacement")}
@@ -210,9 +231,8 @@ def _glb_bytes(head: Head, animation: GlbAnimation | None) -> bytes:
             gltf.nodes[0].mesh = len(gltf.meshes) - 1
         else:
             gltf.nodes.append(g.Node(name=mesh_name, mesh=len(gltf.meshes) - 1, translation=centre.tolist()))
-            gltf.nodes[0].children.append(len(gltf.nodes) - 1)
-    if not gltf.nodes[0].children:
-        gltf.nodes[0].children = None
+            eye_nodes.append(len(gltf.nodes) - 1)
+    gltf.nodes[0].children = eye_nodes if eye_nodes and fade is None else None
 
     order = list(head.parts)
     part_info.sort(key=lambda info: order.index(info["name"]))  # the head's part order
@@ -236,10 +256,12 @@ def _glb_bytes(head: Head, animation: GlbAnimation | None) -> bytes:
                       tables=[list(k) for k in sorted(head.fat)]),
                   metadata=head.metadata)
     gltf.nodes[0].extras = {"mpeg4": extras}
-    root = 0
+    roots = [0]
+    if fade is not None:
+        roots.append(_add_skeleton(w, fade.base, np.asarray(animation.pivot, dtype=np.float64), eye_nodes))
     if animation is not None:
-        root = _add_animation(w, animation, mesh_target_names)
-    gltf.scenes.append(g.Scene(nodes=[root]))
+        roots = [_add_animation(w, animation, mesh_target_names, skinned=fade is not None)] + roots[1:]
+    gltf.scenes.append(g.Scene(nodes=roots))
     gltf.scene = 0
     gltf.buffers.append(g.Buffer(byteLength=len(w.blob)))
     gltf.set_binary_blob(bytes(w.blob))
@@ -248,16 +270,45 @@ def _glb_bytes(head: Head, animation: GlbAnimation | None) -> bytes:
     return b"".join(gltf.save_to_bytes())
 
 
-def _add_animation(w: _Writer, anim: GlbAnimation, mesh_targets: dict[str, list[str]]) -> int:
-    """Add the pivot node and the animation; return the new root node's index."""
+def _add_skeleton(w: _Writer, base: np.ndarray, pivot: np.ndarray, eye_nodes: list[int]) -> int:
+    """The joints that fade the head turn over the neck, and the skin of the head mesh
+    (node 0); return the root joint's index. See :func:`write_glb`."""
+    g, gltf = w.g, w.gltf
+    pivot = pivot.reshape(3)
+    gltf.nodes.append(g.Node(name="shoulders", translation=base.tolist(), children=[]))
+    root = len(gltf.nodes) - 1
+    joints = [root]
+    for j in range(1, NECK_SEGMENTS + 1):
+        name = "pivot" if j == NECK_SEGMENTS else f"neck_{j}"
+        gltf.nodes.append(g.Node(name=name, translation=(pivot - base).tolist()))
+        joints.append(len(gltf.nodes) - 1)
+        gltf.nodes[root].children.append(joints[-1])
+    if eye_nodes:  # the eyeballs turn with the head fully, about their own centres
+        gltf.nodes.append(g.Node(name="head_frame", translation=(-pivot).tolist(), children=eye_nodes))
+        gltf.nodes[joints[-1]].children = [len(gltf.nodes) - 1]
+    # Inverse bind matrices (column-major): the joints' rest frames are translations.
+    ibm = np.tile(np.eye(4), (len(joints), 1, 1))
+    ibm[0, :3, 3] = -base
+    ibm[1:, :3, 3] = -pivot
+    acc = w.accessor(np.ascontiguousarray(ibm.transpose(0, 2, 1)).reshape(-1, 16).astype(np.float32), "MAT4")
+    gltf.skins.append(g.Skin(name="neck", joints=joints, skeleton=root, inverseBindMatrices=acc))
+    gltf.nodes[0].skin = len(gltf.skins) - 1
+    return root
+
+
+def _add_animation(w: _Writer, anim: GlbAnimation, mesh_targets: dict[str, list[str]], skinned: bool = False) -> int:
+    """Add the pivot node (unless the head is ``skinned``: :func:`_add_skeleton` made the
+    joints) and the animation; return the index of the root node holding the head mesh."""
     g, gltf = w.g, w.gltf
     times = _check_finite(np.asarray(anim.times, dtype=np.float32).reshape(-1), "the animation's time of frame")
     if len(times) < 1 or (np.diff(times) <= 0).any():
         raise InputError("animation times must be increasing", fix="give one time per frame, in seconds")
     pivot = np.asarray(anim.pivot, dtype=np.float64).reshape(3)
-    gltf.nodes[0].translation = (-pivot).tolist()
-    gltf.nodes.append(g.Node(name="pivot", translation=pivot.tolist(), children=[0]))
-    root = len(gltf.nodes) - 1
+    root = 0
+    if not skinned:
+        gltf.nodes[0].translation = (-pivot).tolist()
+        gltf.nodes.append(g.Node(name="pivot", translation=pivot.tolist(), children=[0]))
+        root = len(gltf.nodes) - 1
     t_acc = w.accessor(times, "SCALAR", minmax=True)
     samplers, channels = [], []
     nodes = {n.name: k for k, n in enumerate(gltf.nodes)}
@@ -280,9 +331,14 @@ def _add_animation(w: _Writer, anim: GlbAnimation, mesh_targets: dict[str, list[
         q = _check_finite(np.asarray(quats, dtype=np.float32).reshape(len(times), 4),
                           f"the animation's rotation of node '{node_name}' at frame")
         q /= np.linalg.norm(q, axis=1, keepdims=True)
-        samplers.append(g.AnimationSampler(input=t_acc, output=w.accessor(q, "VEC4"), interpolation="LINEAR"))
-        channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
-                                           target=g.AnimationChannelTarget(node=nodes[node_name], path="rotation")))
+        turned = [(node_name, q)]
+        if skinned and node_name == "pivot":  # the neck joints take their shares of the turn
+            turned += [(f"neck_{j}", np.array([quat_power(x, j / NECK_SEGMENTS) for x in q], np.float32))
+                       for j in range(1, NECK_SEGMENTS)]
+        for name, quats in turned:
+            samplers.append(g.AnimationSampler(input=t_acc, output=w.accessor(quats, "VEC4"), interpolation="LINEAR"))
+            channels.append(g.AnimationChannel(sampler=len(samplers) - 1,
+                                               target=g.AnimationChannelTarget(node=nodes[name], path="rotation")))
     if channels:
         gltf.animations.append(g.Animation(name=anim.name, samplers=samplers, channels=channels))
     return root
