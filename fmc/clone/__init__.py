@@ -43,7 +43,9 @@ The method, after Pandžić [1]_, one small function per step:
    points are nearer along the mesh.
 7. Eyes, teeth, tongue and the other parts (:func:`find_parts`): found from their feature
    points; rotations about their centres (installed when missing), translations in FAPU
-   terms; the FAT's eye and head rotations re-centred on the target.
+   terms; the FAT's eye and head rotations re-centred on the target. A target part the
+   source has nothing for that lies on the skin (separate eyelids, brow and lash cards, a
+   beard: :func:`surface_followers`) moves as the skin under it.
 8. Denormalisation by the target's scales; :func:`clone` returns the target with the
    cloned morph targets (same names) and FATs.
 
@@ -57,6 +59,7 @@ from .align import (FPTriangulation, bilaplacian, delaunay_fp_triangulation, fol
 from .cloning import (REQUIRED_FPS, Correspondence, align_heads, check_head, clone, clone_targets,
                       correspond, lip_sides, pin_feature_points, skin_weights)
 from .contours import CONTOURS, contour_pairs, contour_path, edge_graph
+from .followers import FOLLOW_ES0, follower_weights, surface_followers
 from .interpolate import TriangleIndex, disc_samples, gradient_operator, interpolation_matrix
 from .parts import PART_ROLES, PartRef, find_parts, rigid_motion, sphere_centre
 from .regions import LIP_FPS, lip_classes, lip_sides_on_mesh, normalisation, region_scales
@@ -72,4 +75,5 @@ __all__ = [
     "CONTOURS", "contour_path", "contour_pairs", "edge_graph",
     "TriangleIndex", "disc_samples", "gradient_operator", "interpolation_matrix",
     "PART_ROLES", "PartRef", "find_parts", "rigid_motion", "sphere_centre",
+    "FOLLOW_ES0", "follower_weights", "surface_followers",
 ]

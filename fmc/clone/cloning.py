@@ -24,8 +24,9 @@ from mpeg4.head import Head, SparseDisplacement
 
 from .align import folded_triangles, midway, outer_radius, surface_warp, triangulation_for, vertex_positions, warp
 from .contours import contour_pairs
+from .followers import surface_followers
 from .interpolate import gradient_operator, interpolation_matrix
-from .parts import PartRef, feature_point_pins, find_parts, part_correspondence, transfer_part_motion
+from .parts import PART_ROLES, PartRef, feature_point_pins, find_parts, part_correspondence, transfer_part_motion
 from .regions import (LIP_FPS, face_scale, lip_classes, lip_sides_on_mesh, lip_vertex_classes, normalisation,
                       region_scales)
 from .space import SPACE_FPS, alignment_space
@@ -102,6 +103,10 @@ class Correspondence:
         source parts it had to leave out.
     unmatched : set of str
         Source parts the target has nothing for.
+    followers : dict of str to scipy.sparse.csr_matrix
+        Target parts the source has nothing for that lie on the skin
+        (:func:`fmc.clone.followers.surface_followers`): (their vertices, target skin
+        vertices) weights; they move as the skin under them.
     """
 
     source: Head
@@ -113,6 +118,7 @@ class Correspondence:
     support: float = 0.0
     warnings: list[str] = field(default_factory=list)
     unmatched: set[str] = field(default_factory=set)
+    followers: dict[str, sparse.csr_matrix] = field(default_factory=dict)
 
     def transfer(self, targets: Mapping[str, Mapping[str, SparseDisplacement]], tol: float = 1e-7
                  ) -> dict[str, dict[str, SparseDisplacement]]:
@@ -136,6 +142,8 @@ class Correspondence:
             moved = self.skin @ motion
             for j, n in enumerate(block):
                 result[n]["skin"] = moved[:, 3 * j:3 * j + 3] * self.target_scale
+                for part, w in self.followers.items():
+                    result[n][part] = w @ result[n]["skin"]
         for s, t, w in self.parts:
             src_pts, tgt_pts = s.points(self.source), t.points(self.target)
             n_part = self.source.parts[s.part].n_vertices
@@ -209,7 +217,12 @@ def correspond(source: Head, target: Head, antialias: float | None = 0.0, triang
     pairs = [(s, t_parts[k], part_correspondence(source, s, target, t_parts[k]))
              for k, s in s_parts.items() if k in t_parts]
     unmatched = {s_parts[k].part for k in set(s_parts) - set(t_parts) if s_parts[k].part != "skin"}
-    return Correspondence(source, target, skin, s_scale, t_scale, pairs, support, notes, unmatched)
+    # Target parts with no source counterpart that lie on the skin (lids, brow and lash
+    # cards, a beard) move with it; the rigid roles keep still without one.
+    lone = [t_parts[k].part for k in set(t_parts) - set(s_parts) if k not in PART_ROLES and t_parts[k].part != "skin"]
+    followers, more = surface_followers(target, sorted(lone))
+    notes += more
+    return Correspondence(source, target, skin, s_scale, t_scale, pairs, support, notes, unmatched, followers)
 
 
 def _in_skin(head: Head, parts: Mapping[str, PartRef]) -> np.ndarray:
