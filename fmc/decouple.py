@@ -16,6 +16,16 @@ mouth with ``open_jaw`` alone, as many players write) keeps its lips on the jaw,
 literal reading (unset = 0) would keep the mouth shut while the chin drops. The lip FAPs'
 effects on each other's points are left as the tables have them (solving for those too is
 ill-conditioned: neighbouring lip points a centimetre apart ask for opposed values).
+
+The jaw's own FAPs share one point, the chin (2.1), each along its axis: ``open_jaw`` down,
+``thrust_jaw`` forward, ``shift_jaw`` sideways. A jaw that opens by turning (the sculpted
+jaw, the muscle model's) also draws the chin back, and a thrust lowers it a little, so a
+frame that opens and thrusts the jaw put the chin 6 mm behind where the thrust says (jaw
+400, thrust 100). When a frame sets two or three of them, each loses what the others do to
+the chin along its axis: a small linear system (the couplings are a fraction of each table's
+own motion), solved by Gauss–Seidel sweeps, before the lips' correction, which then sees the
+jaw as it will be played. A frame that sets one keeps that one's side motions (an opening's
+natural draw), which no FAP of the frame says otherwise about.
 """
 
 from __future__ import annotations
@@ -74,8 +84,12 @@ def effect_of(effects: Mapping, values: Mapping, n_points: int) -> np.ndarray:
     return out
 
 
+_SWEEPS = 20  # Gauss-Seidel sweeps at most for the jaw's values (they settle in a few)
+
+
 class Decoupler:
-    """Lip FAP values without the jaw's carry (see the module's docstring).
+    """Jaw FAP values without each other's side motions at the chin, lip FAP values without
+    the jaw's carry (see the module's docstring).
 
     Parameters
     ----------
@@ -91,6 +105,32 @@ class Decoupler:
         # axis per FAP unit of overlap of each interval (metres).
         points = [(head.feature_points[FAPS[n].feature_points[0]], FAPS[n].axis_vector) for n in self.faps]
         self._jaw = {j: table_effect(head, fat[(j, 0)], points) for j in JAW_FAPS if (j, 0) in fat and self.faps}
+        # Per jaw FAP: how it moves the chin along each jaw FAP's axis.
+        self.jaw_faps = [n for n in JAW_FAPS if (n, 0) in fat and FAPS[n].feature_points[0] in head.feature_points]
+        self.jaw_units = np.array([fap_unit(n, head.fapu) for n in self.jaw_faps])
+        chin = [(head.feature_points[FAPS[n].feature_points[0]], FAPS[n].axis_vector) for n in self.jaw_faps]
+        self._chin = {n: table_effect(head, fat[(n, 0)], chin) for n in self.jaw_faps}
+
+    def _jaw_values(self, values: Mapping) -> dict:
+        """A copy of ``values`` with the jaw FAPs it sets (two or more) each less what the
+        others do to the chin along its axis."""
+        out = dict(values)
+        given = {n: float(values[n]) for n in self.jaw_faps if values.get(n)}
+        if len(given) < 2:
+            return out
+        v = dict(given)
+        rows = {n: k for k, n in enumerate(self.jaw_faps)}
+        for _ in range(_SWEEPS):
+            change = 0.0
+            for n in given:
+                k = rows[n]
+                others = sum(effect_of({m: self._chin[m]}, {m: v[m]}, len(self.jaw_faps))[k] for m in v if m != n)
+                new = given[n] - others / self.jaw_units[k]
+                change, v[n] = max(change, abs(new - v[n])), new
+            if change < 1e-3:  # FAP units
+                break
+        out.update(v)
+        return out
 
     def carry(self, values: Mapping) -> np.ndarray:
         """(K,) motion, metres, of each lip FAP's point along its axis that the frame's jaw
@@ -98,11 +138,12 @@ class Decoupler:
         return effect_of(self._jaw, values, len(self.faps))
 
     def __call__(self, values: Mapping) -> dict:
-        """A copy of one frame's values with each lip FAP it sets less the jaw's carry."""
-        if not self._jaw or not any(values.get(j) for j in self._jaw):
-            return dict(values)
-        out = dict(values)
-        for n, c, unit in zip(self.faps, self.carry(values), self.units):
+        """A copy of one frame's values with the jaw FAPs it sets each less what the others
+        do to the chin, and each lip FAP it sets less the jaw's carry."""
+        out = self._jaw_values(values)
+        if not self._jaw or not any(out.get(j) for j in self._jaw):
+            return out
+        for n, c, unit in zip(self.faps, self.carry(out), self.units):
             if c and n in values:
                 out[n] = float(values[n] or 0.0) - c / unit
         return out

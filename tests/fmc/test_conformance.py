@@ -115,6 +115,20 @@ def test_the_jaw_does_not_move_the_lips_a_frame_sets(shipped):
     assert shipped.fp_position("2.3", alone)[1] - shipped.fp_position("2.3")[1] < -0.5 * 700 * mns
 
 
+def test_a_thrust_moves_the_chin_by_its_own_value_whatever_the_opening_does(shipped):
+    """The jaw opens by turning, which draws the chin back; a frame that also thrusts the
+    jaw puts the chin forward by the thrust's value (it was 6 mm behind that at jaw 400 and
+    thrust 100); without a thrust the opening keeps its draw."""
+    player = Player(shipped)
+    mns = shipped.fapu.MNS0 / 1024
+    both = player.part_vertices(player.vertices({3: 400.0, 14: 100.0}))
+    d = shipped.fp_position("2.1", both) - shipped.fp_position("2.1")
+    assert d[2] == pytest.approx(100 * mns, rel=0.10) and d[1] == pytest.approx(-400 * mns, rel=0.10)
+    assert fp_conformance(shipped, {3: 400.0, 14: 100.0}, moved=both) == (1, 1)
+    alone = player.part_vertices(player.vertices({3: 400.0}))
+    assert shipped.fp_position("2.1", alone)[2] - shipped.fp_position("2.1")[2] < -0.004  # measured -8.5 mm
+
+
 def test_lids_and_lips_stop_where_they_meet(shipped):
     """Top lid 1080 and bottom lid 600 (IRISD units) would re-open the eye with the lids
     passed; the limits stop them where they meet, and say so. --no-limits plays them."""
