@@ -14,9 +14,11 @@ there): at most 0.87 % of a picture's pixels differ, by at most 20 grey levels,
 scattered (the largest mean over a 7x7 window is 5.9 grey levels, the mean over the picture
 0.011). A real change is not scattered: a 10x10 detail moved by 3 px raises some 7x7 window's
 mean to 79 grey levels or more in every gallery picture, a picture moved by one pixel to 128,
-the whole picture brightened by 2 grey levels its mean to 2. So a picture matches when no 7x7
-window differs by more than :data:`LOCAL_TOLERANCE` on average and the whole by no more than
-:data:`MEAN_TOLERANCE`; where the libraries differ (fonts and encoders change), by no more
+the whole picture brightened by 2 grey levels its mean to 2. Feature points a detector finds
+on another CPU may also land a pixel away, so the windows measure how far each pixel lies
+outside the other picture's range over the 3x3 pixels around it (:data:`SHIFT`). So a
+picture matches when no 7x7 window differs by more than :data:`LOCAL_TOLERANCE` on average
+so measured and the whole, pixel by pixel, by no more than :data:`MEAN_TOLERANCE`; where the libraries differ (fonts and encoders change), by no more
 than :data:`OTHER_LIBRARIES_TOLERANCE` on average, the section saying why.
 """
 
@@ -44,6 +46,12 @@ MEAN_TOLERANCE = 0.1
 OTHER_LIBRARIES_TOLERANCE = 2.0
 #: Side of the window, pixels.
 WINDOW = 7
+#: How far a detail may sit from where the gallery has it, pixels, in the windows' measure:
+#: a feature point the detector found on another CPU lands up to a pixel away (the
+#: example's nostril point in 01_photos_and_points.png, on two machines of one kind: a 7x7
+#: window 29.9 grey levels off, 7.4 measured against the gallery's 3x3 range). A whole
+#: picture moved by a pixel still shows in the mean, which is taken pixel by pixel.
+SHIFT = 1
 
 
 def _ict_present() -> bool:
@@ -78,11 +86,18 @@ def test_every_gallery_picture_is_listed_and_linked_from_the_readme():
 
 def picture_difference(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     """(mean, largest 7x7 window mean) of the per-pixel largest channel difference of two
-    (H, W, 3) uint8 pictures, grey levels."""
+    (H, W, 3) uint8 pictures, grey levels; the windows over how far each pixel of either
+    lies outside the other's range over the 3x3 pixels around it (:data:`SHIFT`)."""
     import cv2
 
     d = np.abs(x.astype(np.int16) - y.astype(np.int16)).max(axis=2).astype(np.float32)
-    local = cv2.blur(d, (WINDOW, WINDOW), borderType=cv2.BORDER_CONSTANT)
+    k = np.ones((2 * SHIFT + 1, 2 * SHIFT + 1), np.uint8)
+    outside = np.zeros_like(d)
+    for a, b in ((x, y), (y, x)):
+        hi, lo = cv2.dilate(b, k).astype(np.int16), cv2.erode(b, k).astype(np.int16)
+        a = a.astype(np.int16)
+        outside = np.maximum(outside, np.maximum(0, np.maximum(a - hi, lo - a)).max(axis=2).astype(np.float32))
+    local = cv2.blur(outside, (WINDOW, WINDOW), borderType=cv2.BORDER_CONSTANT)
     return float(d.mean()), float(local.max())
 
 
@@ -142,7 +157,8 @@ def test_notebook_runs_and_remakes_its_gallery_pictures(path, tmp_path, request,
     identical = sum((gallery / n).read_bytes() == (make_gallery.GALLERY_DIR / n).read_bytes() for n in made)
     if same:
         line += (f"; {len(made)} pictures match docs/gallery ({identical} byte for byte, the others within "
-                 f"{LOCAL_TOLERANCE:g} grey levels over {WINDOW}x{WINDOW} px and {MEAN_TOLERANCE:g} on average)")
+                 f"{LOCAL_TOLERANCE:g} grey levels over {WINDOW}x{WINDOW} px give or take {SHIFT} px and "
+                 f"{MEAN_TOLERANCE:g} on average)")
     else:
         changed = {k: f"{manifest['environment'].get(k)} -> {v}" for k, v in here.items()
                    if manifest["environment"].get(k) != v}

@@ -108,6 +108,23 @@ def test_six_rows_two_broken_give_four_heads_and_two_clear_failures(people, loca
     assert {r["id"] for r in again.failed} == {"missing", "impossible"}
 
 
+def _same_json(a, b, where: str) -> None:
+    """The two JSON values alike: the same keys, lists and strings; numbers within 1e-6
+    (metres, pixels over a thousand wide, texture coordinates) or 1e-6 of their size."""
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and a.keys() == b.keys(), where
+        for k in a:
+            _same_json(a[k], b[k], f"{where}.{k}")
+    elif isinstance(a, list):
+        assert isinstance(b, list) and len(a) == len(b), where
+        for k, (x, y) in enumerate(zip(a, b)):
+            _same_json(x, y, f"{where}[{k}]")
+    elif isinstance(a, (int, float)) and not isinstance(a, bool):
+        assert isinstance(b, (int, float)) and abs(a - b) <= 1e-6 * max(1.0, abs(a)), (where, a, b)
+    else:
+        assert a == b, (where, a, b)
+
+
 def _parts(path: Path) -> dict:
     head = load_head(path)
     return {n: (p.vertices, p.triangles, p.uv) for n, p in head.parts.items()}
@@ -124,14 +141,18 @@ def test_a_dask_local_cluster_gives_identical_heads(people, local_run, tmp_path)
     assert (report.count("built"), report.count("failed")) == (4, 2)
     workers = {r["worker"] for r in report.records if r["status"] == "done"}
     assert all(w.split(":")[1] != str(os.getpid()) for w in workers)  # built on the cluster's processes
+    # One worker thread against the local run's threads: the same heads but for the order
+    # of floating-point sums (BLAS and OpenCV split them by thread; measured: texture
+    # coordinates 6e-9 apart on one machine, identical on another), so within a micrometre.
     for pid in ("p1", "p2", "p3", "p4"):
-        assert (out / pid / "head.fdp.json").read_bytes() == (out_local / pid / "head.fdp.json").read_bytes()
+        _same_json(json.loads((out / pid / "head.fdp.json").read_text()),
+                   json.loads((out_local / pid / "head.fdp.json").read_text()), pid)
         a, b = _parts(out / pid / "head.glb"), _parts(out_local / pid / "head.glb")
         assert a.keys() == b.keys()
         for name in a:
-            np.testing.assert_allclose(a[name][0], b[name][0], atol=1e-9, rtol=0)
+            np.testing.assert_allclose(a[name][0], b[name][0], atol=1e-6, rtol=0)
             np.testing.assert_array_equal(a[name][1], b[name][1])
-            np.testing.assert_allclose(a[name][2], b[name][2], atol=1e-9, rtol=0)
+            np.testing.assert_allclose(a[name][2], b[name][2], atol=1e-6, rtol=0)
     errors = {r["id"]: r["error"] for r in report.failed}
     assert errors == {r["id"]: r["error"] for r in local_run[1].failed}
 
