@@ -195,8 +195,14 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     seen_sign = 1.0 if toward[0] >= 0 else -1.0
 
     say("finding what each photo shows of the head")
+    photos = {"front": front_photo} if front_only else {"front": front_photo, "side": side_photo}
     meshes = _head_meshes(head)
-    depth = {k: _depth(meshes, cam.camera) for k, cam in cams.items()}
+    normals = {}
+    if delight:  # the de-lighting's normal images carry the depth: one render per photo
+        from .delight import normal_image
+
+        normals = {key: normal_image(head, cams[key].camera) for key in photos}
+    depth = {k: normals[k][1] if k in normals else _depth(meshes, cam.camera) for k, cam in cams.items()}
     seen = {k: _visible(V, cams[k].camera, depth[k]) for k in cams}
     anywhere = seen["front"] | seen["side"] | seen["mirrored"]
     anywhere[~anywhere] = _seen_from_around(head, V[~anywhere])
@@ -248,7 +254,6 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     uv = np.c_[(tex_px[:, 0] + 0.5) / size, 1.0 - (tex_px[:, 1] + 0.5) / size]
     times["layout"] = time.perf_counter() - t1
 
-    photos = {"front": front_photo} if front_only else {"front": front_photo, "side": side_photo}
     head_masks = {}
     for key, photo in photos.items():
         d = depth[key]
@@ -268,7 +273,7 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
         say("taking the photos' lighting out (spherical-harmonic shading fit)")
         t = time.perf_counter()
         for key, photo in list(photos.items()):
-            photos[key], lighting[key] = delight_photo(head, photo, cams[key].camera)
+            photos[key], lighting[key] = delight_photo(head, photo, cams[key].camera, normals=normals[key])
             if lighting[key].fallback:
                 say(f"warning: the {key} photo keeps its light: {lighting[key].fallback}")
         times["delight"] = time.perf_counter() - t
