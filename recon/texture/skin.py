@@ -270,12 +270,13 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
                              fix="check the feature points of that photo")
     lighting = {}
     if delight:
-        from .delight import delight_photo
+        from .delight import delight_photo, fit_mask
 
         say("taking the photos' lighting out (spherical-harmonic shading fit)")
         t = time.perf_counter()
+        skin_to_fit = fit_mask(head)  # the same skin in both photos
         for key, photo in list(photos.items()):
-            photos[key], lighting[key] = delight_photo(head, photo, cams[key].camera, normals=normals[key])
+            photos[key], lighting[key] = delight_photo(head, photo, cams[key].camera, skin_to_fit, normals[key])
             if lighting[key].fallback:
                 say(f"warning: the {key} photo keeps its light: {lighting[key].fallback}")
         times["delight"] = time.perf_counter() - t
