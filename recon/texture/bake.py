@@ -81,19 +81,21 @@ def rasterize(corners: np.ndarray, triangles: np.ndarray, size: tuple[int, int])
         off = b.min(axis=1) < -1e-9
         if not off.any():
             break
-        oy, ox = ys[off], xs[off]
+        oy, ox, po = ys[off], xs[off], p[off]
         padded = np.pad(ids, 1, constant_values=-1)
-        cand = np.stack([padded[oy + 1 + dy, ox + 1 + dx] for dy in (-1, 0, 1) for dx in (-1, 0, 1)], axis=1)
-        best_t, best_b, best_m = ids[oy, ox].copy(), b[off], b[off].min(axis=1)
-        for j in range(cand.shape[1]):
-            t = cand[:, j]
-            ok = t >= 0
-            bj = np.zeros((len(t), 3))
-            bj[ok] = _barycentric(p[off][ok], px[t[ok]], clamp=False)
-            mj = np.where(ok, bj.min(axis=1), -np.inf)
-            better = mj > best_m
-            best_t[better], best_b[better], best_m[better] = t[better], bj[better], mj[better]
-        if (best_t == ids[oy, ox]).all():
+        own = ids[oy, ox]
+        best_t, best_b, best_m = own.copy(), b[off], b[off].min(axis=1)
+        for dy, dx in ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)):
+            t = padded[oy + 1 + dy, ox + 1 + dx]
+            k = np.flatnonzero((t >= 0) & (t != own))  # the texel's own triangle cannot do better
+            if not len(k):
+                continue
+            bj = _barycentric(po[k], px[t[k]], clamp=False)
+            mj = bj.min(axis=1)
+            better = mj > best_m[k]
+            kb = k[better]
+            best_t[kb], best_b[kb], best_m[kb] = t[kb], bj[better], mj[better]
+        if (best_t == own).all():
             break
         ids[oy, ox] = best_t
         b[off] = best_b

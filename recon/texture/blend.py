@@ -60,8 +60,17 @@ def blend_multiband(images, masks, levels: int | None = None, method: str = "ope
     if method == "opencv":
         blender = cv2.detail_MultiBandBlender(0, n)
         blender.prepare((0, 0, w, h))
+        # Each layer is fed only around its mask. The 5-tap kernels reach less than 2^(k+1)
+        # pixels by level k: the mask's weights and the layer's pyramid under them reach
+        # less than 6 x 2^levels pixels from the mask, so the rest cannot change the result.
+        reach = 8 << n
         for im, m in zip(images, masks):
-            blender.feed(im.astype(np.int16), m.astype(np.uint8) * 255, (0, 0))
+            m8 = m.astype(np.uint8)
+            x, y, bw, bh = cv2.boundingRect(m8)
+            if not bw:
+                continue
+            x0, y0, x1, y1 = max(0, x - reach), max(0, y - reach), min(w, x + bw + reach), min(h, y + bh + reach)
+            blender.feed(im[y0:y1, x0:x1].astype(np.int16), m8[y0:y1, x0:x1] * 255, (x0, y0))
         out, _ = blender.blend(None, None)
         return np.clip(out, 0, 255).astype(np.uint8)
     if method == "skimage":

@@ -9,7 +9,10 @@ assuming that the skin's albedo is smooth and near-constant at low frequency, an
 the photo by the fitted shading.
 
 * The normals come from the fitted head rendered with the photo's fitted camera
-  (:func:`normal_image`), in the camera's frame.
+  (:func:`normal_image`), in the camera's frame; that render's depth is the one the
+  texture's visibility test needs, so :func:`recon.texture.texture_skin` renders each photo's
+  view once. Only the head's box is worked on, and the skin to fit is rendered at the fitted
+  pixels only (:func:`skin_weight`).
 * The fit is a robust (iteratively reweighted, Tukey biweight) least-squares fit of the
   photo's luma to the nine harmonics over the skin the feature points tell from the eyes,
   brows, lips, nostrils and hair (:func:`fit_mask`); what is left of the hair, lashes and
@@ -38,6 +41,7 @@ R. Basri and D. W. Jacobs, "Lambertian reflectance and linear subspaces", IEEE P
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import cv2
@@ -47,8 +51,8 @@ from mpeg4.errors import InputError
 from mpeg4.head import Head
 from mpeg4.render import Camera, RenderMesh, render, vertex_normals
 
-__all__ = ["Lighting", "MIN_SHADING", "MIN_MEAN_SHADING", "MAX_BURNT", "sh_basis", "normal_image", "fit_mask", "fit_lighting",
-           "judge", "delight_photo"]
+__all__ = ["Lighting", "MIN_SHADING", "MIN_MEAN_SHADING", "MAX_BURNT", "sh_basis", "normal_image", "decode_normals",
+           "skin_weight", "fit_mask", "fit_lighting", "judge", "delight_photo"]
 
 #: Shading (share of its brightest) below which the division is not trusted and held.
 MIN_SHADING = 0.25
@@ -60,6 +64,8 @@ MIN_MEAN_SHADING = 0.3
 MAX_BURNT = 0.02
 
 _LUMA = np.array([0.299, 0.587, 0.114])
+_STRIDE = 3  # pixels: the fit takes every third pixel each way
+_SMOOTH_PX = 2.0  # the shading's blur, pixels
 
 
 @dataclass
@@ -108,44 +114,78 @@ def sh_basis(normals: np.ndarray) -> np.ndarray:
     return np.stack([np.ones_like(x), x, y, z, x * y, x * z, y * z, x * x - y * y, 3 * z * z - 1], axis=1)
 
 
-def normal_image(head: Head, camera: Camera, weights: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The head's surface normals at every pixel of a camera's image.
+def normal_image(head: Head, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """The head's surface normals at every pixel of a camera's image, and its depth, from
+    one render.
 
     Parameters
     ----------
     head : Head
     camera : Camera
-    weights : (N,) float in [0, 1], optional
-        A value per skin vertex, rendered alongside (e.g. :func:`fit_mask`).
 
     Returns
     -------
-    normals : (H, W, 3) float32
-        Unit normals in the camera's frame (x right, y up, z towards the viewer); zero
-        where the head is not drawn.
-    head_mask : (H, W) bool
-        Where it is drawn.
-    weight : (H, W) float32
-        ``weights`` interpolated over the skin (0 elsewhere; all 0 when not given).
+    encoded : (H, W, 3) uint8
+        Unit normals in the camera's frame (x right, y up, z towards the viewer) as colours
+        127.5 (n + 1) (:func:`decode_normals`).
+    depth : (H, W) float64
+        Metres, inf where the head is not drawn: the depth image of a plain depth render
+        of the head, so that the texture's visibility test can use this render too.
     """
-    meshes, wmeshes = [], []
+    meshes = []
     R = camera.rotation
-    for name, p in head.parts.items():
-        n = vertex_normals(p.vertices, p.triangles) @ R.T
-        meshes.append(RenderMesh(p.vertices, p.triangles, vertex_colours=0.5 + 0.5 * n, colour=(1.0, 1.0, 1.0)))
-        w = np.asarray(weights, float) if (name == "skin" and weights is not None) else np.zeros(len(p.vertices))
-        wmeshes.append(RenderMesh(p.vertices, p.triangles, vertex_colours=np.repeat(w[:, None], 3, axis=1),
-                                  colour=(1.0, 1.0, 1.0)))
-    img, depth = render(meshes, camera, background=(0.5, 0.5, 0.5), return_depth=True, samples=0, ambient=1.0)
-    mask = np.isfinite(depth)
-    n = img.astype(np.float32) / 127.5 - 1.0
-    n /= np.maximum(np.linalg.norm(n, axis=2, keepdims=True), 1e-6)
+    for p in head.parts.values():
+        n = vertex_normals(p.vertices, p.triangles)
+        # Unlit (ambient 1): the normals given only spare the renderer computing them again.
+        meshes.append(RenderMesh(p.vertices, p.triangles, normals=n, vertex_colours=0.5 + 0.5 * (n @ R.T),
+                                 colour=(1.0, 1.0, 1.0)))
+    return render(meshes, camera, background=(0.5, 0.5, 0.5), return_depth=True, samples=0, ambient=1.0)
+
+
+def decode_normals(encoded: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """(H, W, 3) float32 unit normals from :func:`normal_image`'s (H, W, 3) uint8 colours,
+    zero outside the (H, W) bool ``mask``."""
+    n = encoded.astype(np.float32) / 127.5 - 1.0
+    n /= np.maximum(np.sqrt(np.einsum("ijk,ijk->ij", n, n)), 1e-6)[..., None]
     n[~mask] = 0.0
-    weight = np.zeros(mask.shape, np.float32)
-    if weights is not None:
-        weight = render(wmeshes, camera, background=(0.0, 0.0, 0.0), samples=0, ambient=1.0)[..., 0] / 255.0
-    return n, mask, weight.astype(np.float32)
+    return n
+
+
+def skin_weight(head: Head, camera: Camera, weights: np.ndarray, stride: int = 1,
+                box: tuple[int, int, int, int] | None = None) -> np.ndarray:
+    """A value per skin vertex interpolated over the skin in a camera's image (0 elsewhere,
+    the other parts hiding it), at every ``stride``-th pixel each way.
+
+    Parameters
+    ----------
+    head : Head
+    camera : Camera
+    weights : (N,) float in [0, 1]
+        One per skin vertex (e.g. :func:`fit_mask`).
+    stride : int
+    box : (x0, y0, x1, y1), optional
+        The part of the image to render, pixels (the whole image by default).
+
+    Returns
+    -------
+    (⌈(y1 − y0) / stride⌉, ⌈(x1 − x0) / stride⌉) float32
+        Element (i, j) is the image's pixel (x0 + stride j, y0 + stride i): rendered with a
+        camera whose pixel centres are those pixels', not sampled from a full-size render.
+    """
+    x0, y0, x1, y1 = box if box is not None else (0, 0, camera.width, camera.height)
+    cx, cy = camera.principal
+    sub = dataclasses.replace(camera, width=-(-(x1 - x0) // stride), height=-(-(y1 - y0) // stride),
+                              principal=((cx - x0) / stride, (cy - y0) / stride),
+                              focal_px=None if camera.focal_px is None else camera.focal_px / stride,
+                              scale_px=None if camera.scale_px is None else camera.scale_px / stride)
+    meshes = []
+    for name, p in head.parts.items():
+        w = np.asarray(weights, float) if name == "skin" else np.zeros(len(p.vertices))
+        # Unlit (ambient 1), so any unit normal will do (not zero: GLSL cannot normalise it).
+        meshes.append(RenderMesh(p.vertices, p.triangles, normals=np.broadcast_to([0.0, 0.0, 1.0], p.vertices.shape),
+                                 vertex_colours=np.repeat(w[:, None], 3, axis=1), colour=(1.0, 1.0, 1.0)))
+    img = render(meshes, sub, background=(0.0, 0.0, 0.0), samples=0, ambient=1.0)
+    return img[..., 0].astype(np.float32) / 255.0
 
 
 def fit_mask(head: Head) -> np.ndarray:
@@ -185,17 +225,22 @@ def fit_mask(head: Head) -> np.ndarray:
 
 
 def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, weight: np.ndarray,
-                 stride: int = 3, iterations: int = 8, ridge: float = 1e-3, smooth_px: float = 2.0) -> Lighting:
+                 stride: int = _STRIDE, iterations: int = 8, ridge: float = 1e-3,
+                 smooth_px: float = _SMOOTH_PX) -> Lighting:
     """Fit second-order spherical-harmonic lighting to a photo's skin.
 
     Parameters
     ----------
     photo : (H, W, 3) uint8
-    normals, head_mask, weight
-        :func:`normal_image` of the head with the photo's camera (``weight`` > 0.5 is
-        the skin to fit).
+    normals : (H, W, 3) float32
+        Unit normals, camera frame (:func:`decode_normals`).
+    head_mask : (H, W) bool
+        Where the head is drawn.
+    weight : (H, W) float, or (⌈H / stride⌉, ⌈W / stride⌉) at the fitted pixels only
+        > 0.5 on the skin to fit (:func:`skin_weight`).
     stride : int
-        Every ``stride``-th pixel each way is fitted.
+        Every ``stride``-th pixel each way is fitted (and the shading's mean over the skin
+        taken there).
     iterations : int
         Reweighting passes (Tukey's biweight on the relative residual, scale 4.685 MAD).
     ridge : float
@@ -210,7 +255,8 @@ def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, 
     """
     sub = (slice(None, None, stride), slice(None, None, stride))
     luma = photo[sub].astype(np.float32) @ _LUMA.astype(np.float32)
-    sel = head_mask[sub] & (weight[sub] > 0.5) & (luma > 8) & (luma < 250)  # neither black nor burnt out
+    skin = head_mask[sub] & ((weight if weight.shape == luma.shape else weight[sub]) > 0.5)
+    sel = skin & (luma > 8) & (luma < 250)  # neither black nor burnt out
     if sel.sum() < 200:
         raise InputError(f"only {int(sel.sum())} pixels of skin to fit the photo's lighting to", where="de-lighting",
                          fix="check the head's fit to the photo, or keep the photo's lighting (--keep-lighting)")
@@ -220,7 +266,9 @@ def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, 
     damp = np.diag([0.0] + [1.0] * 8)
     for _ in range(iterations):
         BW = B * w[:, None]
-        A = BW.T @ B
+        # The 9 x 9 normal matrix by einsum's own loop: a threaded BLAS product of this
+        # shape (K x 9) waits on its threads whenever the cores are busy (8 ms, not 0.3).
+        A = np.einsum("ki,kj->ij", BW, B)
         c = np.linalg.solve(A + ridge * np.trace(A) / 9 * damp, BW.T @ y)
         fit = B @ c
         r = y / np.maximum(fit, 1e-6) - 1.0
@@ -233,19 +281,18 @@ def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, 
         raise InputError("the fitted lighting is dark everywhere", where="de-lighting",
                          fix="keep the photo's lighting (--keep-lighting)")
     k = (c / peak).astype(np.float32)
-    x, y, z = normals[..., 0], normals[..., 1], normals[..., 2]
+    x, y, z = cv2.split(np.asarray(normals, np.float32))  # contiguous planes: faster arithmetic
     full = (k[0] - k[8] + x * (k[1] + k[4] * y + k[5] * z + k[7] * x) + y * (k[2] + k[6] * z - k[7] * y)
             + z * (k[3] + 3 * k[8] * z))
     # The normals come from an 8-bit render: smooth their quantisation steps out of the
     # shading (which is smooth anyway) within the head, so that they do not band the albedo.
-    m = head_mask.astype(np.float32)
-    full = cv2.GaussianBlur(np.where(head_mask, full, 0).astype(np.float32), (0, 0), smooth_px) / \
-        np.maximum(cv2.GaussianBlur(m, (0, 0), smooth_px), 1e-3)
+    full[~head_mask] = 0.0
+    full = cv2.GaussianBlur(full, (0, 0), smooth_px) / \
+        np.maximum(cv2.GaussianBlur(head_mask.astype(np.float32), (0, 0), smooth_px), 1e-3)
     trust = head_mask & (full >= MIN_SHADING)
     clamped = np.clip(full, MIN_SHADING, 1.25)
-    skin = head_mask & (weight > 0.5)
-    mean = float(clamped[skin].mean()) if skin.any() else 1.0
-    shading = np.where(head_mask, clamped / mean, 1.0).astype(np.float32)
+    mean = float(clamped[sub][skin].mean()) if skin.any() else 1.0
+    shading = np.where(head_mask, clamped / mean, np.float32(1.0)).astype(np.float32)
     return Lighting(c, peak, shading, trust, int(sel.sum()), float(np.mean(w > 0)), mean)
 
 
@@ -255,7 +302,8 @@ def judge(photo: np.ndarray, albedo: np.ndarray, light: Lighting, skin: np.ndarr
     Parameters
     ----------
     photo, albedo : (H, W, 3) uint8
-        The photo and the photo divided by ``light``'s shading.
+        The photo and the photo divided by ``light``'s shading (or the same sample of their
+        pixels, e.g. every third each way).
     light : Lighting
     skin : (H, W) bool
         The skin the light was fitted to.
@@ -270,8 +318,8 @@ def judge(photo: np.ndarray, albedo: np.ndarray, light: Lighting, skin: np.ndarr
     return None
 
 
-def delight_photo(head: Head, photo: np.ndarray, camera: Camera, mask: np.ndarray | None = None
-                  ) -> tuple[np.ndarray, Lighting]:
+def delight_photo(head: Head, photo: np.ndarray, camera: Camera, mask: np.ndarray | None = None,
+                  normals: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, Lighting]:
     """A photo of the fitted head with its lighting taken out.
 
     Parameters
@@ -283,6 +331,8 @@ def delight_photo(head: Head, photo: np.ndarray, camera: Camera, mask: np.ndarra
         The photo's fitted camera.
     mask : (N,) float, optional
         The skin vertices to fit (:func:`fit_mask` by default).
+    normals : ((H, W, 3) uint8, (H, W) float64), optional
+        :func:`normal_image` of the head with this camera, if already rendered.
 
     Returns
     -------
@@ -292,10 +342,31 @@ def delight_photo(head: Head, photo: np.ndarray, camera: Camera, mask: np.ndarra
     lighting : Lighting
         ``fallback`` says why the photo was kept, or None.
     """
-    normals, head_mask, weight = normal_image(head, camera, fit_mask(head) if mask is None else mask)
-    light = fit_lighting(photo, normals, head_mask, weight)
-    out = np.clip(np.round(photo.astype(np.float32) / light.shading[..., None]), 0, 255).astype(np.uint8)
-    light.fallback = judge(photo, out, light, head_mask & (weight > 0.5))
+    encoded, depth = normal_image(head, camera) if normals is None else normals
+    head_mask = np.isfinite(depth)
+    if not head_mask.any():
+        raise InputError("the head does not show in the photo", where="de-lighting",
+                         fix="check the photo's camera")
+    # Only the head's box and the shading blur's reach are worked on (the shading is 1
+    # elsewhere), its corner on the fit's grid so that the same pixels are fitted.
+    reach = int(np.ceil(4 * _SMOOTH_PX)) + 1  # OpenCV's Gaussian kernel reaches 4 σ
+    bx, by, bw, bh = cv2.boundingRect(head_mask.astype(np.uint8))
+    h, w = head_mask.shape
+    x0, y0 = max(0, bx - reach) // _STRIDE * _STRIDE, max(0, by - reach) // _STRIDE * _STRIDE
+    x1, y1 = min(w, bx + bw + reach), min(h, by + bh + reach)
+    box = np.s_[y0:y1, x0:x1]
+    weight = skin_weight(head, camera, fit_mask(head) if mask is None else mask, _STRIDE, (x0, y0, x1, y1))
+    crop = photo[box]
+    light = fit_lighting(crop, decode_normals(encoded[box], head_mask[box]), head_mask[box], weight)
+    albedo = np.clip(np.round(crop.astype(np.float32) / light.shading[..., None]), 0, 255).astype(np.uint8)
+    sub = np.s_[::_STRIDE, ::_STRIDE]
+    light.fallback = judge(crop[sub], albedo[sub], light, head_mask[box][sub] & (weight > 0.5))
+    # Back to the photo's frame.
+    shading, trust = np.ones((h, w), np.float32), np.zeros((h, w), bool)
+    shading[box], trust[box] = light.shading, light.trust
+    light.shading, light.trust = shading, trust
     if light.fallback is not None:
         return photo.copy(), light
+    out = photo.copy()
+    out[box] = albedo
     return out, light

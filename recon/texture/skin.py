@@ -118,11 +118,13 @@ def photo_background(photo: np.ndarray, tol: float = 14.0, border: int = 6) -> n
     b = max(1, min(border, w // 4))
     edge = np.concatenate([img[:, :b], img[:, -b:]], axis=1)
     ref = np.median(edge, axis=1)  # (H, 3)
-    close = np.linalg.norm(img - ref[:, None, :], axis=2) < tol
+    d = img - ref[:, None, :]
+    close = np.einsum("ijk,ijk->ij", d, d) < tol * tol
     n, labels = cv2.connectedComponents(close.astype(np.uint8), connectivity=4)
-    touching = np.unique(np.r_[labels[:, 0], labels[:, -1]])
-    touching = touching[touching > 0]
-    return np.isin(labels, touching) & close
+    touching = np.zeros(n, bool)  # a look-up per label (np.isin sorts the whole image)
+    touching[np.r_[labels[:, 0], labels[:, -1]]] = True
+    touching[0] = False
+    return touching[labels] & close
 
 
 def _fill_outside(photo: np.ndarray, valid: np.ndarray) -> np.ndarray:
@@ -195,8 +197,14 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     seen_sign = 1.0 if toward[0] >= 0 else -1.0
 
     say("finding what each photo shows of the head")
+    photos = {"front": front_photo} if front_only else {"front": front_photo, "side": side_photo}
     meshes = _head_meshes(head)
-    depth = {k: _depth(meshes, cam.camera) for k, cam in cams.items()}
+    normals = {}
+    if delight:  # the de-lighting's normal images carry the depth: one render per photo
+        from .delight import normal_image
+
+        normals = {key: normal_image(head, cams[key].camera) for key in photos}
+    depth = {k: normals[k][1] if k in normals else _depth(meshes, cam.camera) for k, cam in cams.items()}
     seen = {k: _visible(V, cams[k].camera, depth[k]) for k in cams}
     anywhere = seen["front"] | seen["side"] | seen["mirrored"]
     anywhere[~anywhere] = _seen_from_around(head, V[~anywhere])
@@ -248,7 +256,6 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     uv = np.c_[(tex_px[:, 0] + 0.5) / size, 1.0 - (tex_px[:, 1] + 0.5) / size]
     times["layout"] = time.perf_counter() - t1
 
-    photos = {"front": front_photo} if front_only else {"front": front_photo, "side": side_photo}
     head_masks = {}
     for key, photo in photos.items():
         d = depth[key]
@@ -263,12 +270,13 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
                              fix="check the feature points of that photo")
     lighting = {}
     if delight:
-        from .delight import delight_photo
+        from .delight import delight_photo, fit_mask
 
         say("taking the photos' lighting out (spherical-harmonic shading fit)")
         t = time.perf_counter()
+        skin_to_fit = fit_mask(head)  # the same skin in both photos
         for key, photo in list(photos.items()):
-            photos[key], lighting[key] = delight_photo(head, photo, cams[key].camera)
+            photos[key], lighting[key] = delight_photo(head, photo, cams[key].camera, skin_to_fit, normals[key])
             if lighting[key].fallback:
                 say(f"warning: the {key} photo keeps its light: {lighting[key].fallback}")
         times["delight"] = time.perf_counter() - t
@@ -284,12 +292,12 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     for photo in () if front_only else (fill["side"], np.ascontiguousarray(fill["side"][:, ::-1])):
         warp = warps[SEEN] if len(layers) == 1 else warps[MIRRORED]
         cmap = warp.inverse_map(G, coarse)
-        # Texel (x, y) sits at (x / grid, y / grid) on the coarse map.
-        along = (np.arange(size, dtype=np.float32) / grid)
-        mx, my = np.broadcast_to(along[None, :], (size, size)), np.broadcast_to(along[:, None], (size, size))
-        mx, my = np.ascontiguousarray(mx), np.ascontiguousarray(my)
-        # The two coordinates apart (each remap writes a contiguous map the next one reads).
-        fx, fy = (cv2.remap(np.ascontiguousarray(cmap[..., k]), mx, my, cv2.INTER_LINEAR) for k in range(2))
+        # Texel (x, y) sits at (x / grid, y / grid) on the coarse map: an affine resampling
+        # (the same bilinear weights as a remap, without building its two full-size maps),
+        # the two coordinates apart (OpenCV is far faster on one channel than on two).
+        fine = np.array([[1.0 / grid, 0.0, 0.0], [0.0, 1.0 / grid, 0.0]])
+        fx, fy = (cv2.warpAffine(np.ascontiguousarray(cmap[..., k]), fine, (size, size),
+                                 flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP) for k in range(2))
         layers.append(cv2.remap(photo, fx, fy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE))
     times["warp"] = time.perf_counter() - t2
 

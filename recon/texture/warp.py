@@ -129,17 +129,17 @@ class FeatureLineWarp:
         """Side-photo pixels per metre towards the back of the head, and front-photo pixels
         per metre outwards, at a point."""
         d = 0.01
-        s0, f0 = self._side.project(x[None])[0], self._front.project(x[None])[0]
-        ds = (self._side.project((x + [0.0, 0.0, -d])[None])[0] - s0) / d
-        df = (self._front.project((x + [self._sigma * d, 0.0, 0.0])[None])[0] - f0) / d
-        return ds, df
+        s0, s1 = self._side.project(np.array([x, x + [0.0, 0.0, -d]]))
+        f0, f1 = self._front.project(np.array([x, x + [self._sigma * d, 0.0, 0.0]]))
+        return (s1 - s0) / d, (f1 - f0) / d
 
     def _straight_row(self, x: np.ndarray, lift: float):
         d = 0.01
-        s0, f0 = self._side.project(x[None])[0], self._front.project(x[None])[0]
         up = np.array([0.0, d, 0.0])
-        s0 = s0 + (self._side.project((x + up)[None])[0] - s0) * (lift / d)
-        f0 = f0 + (self._front.project((x + up)[None])[0] - f0) * (lift / d)
+        s0, s1 = self._side.project(np.array([x, x + up]))
+        f0, f1 = self._front.project(np.array([x, x + up]))
+        s0 = s0 + (s1 - s0) * (lift / d)
+        f0 = f0 + (f1 - f0) * (lift / d)
         ds, df = self._directions(x)
         t = np.r_[-_FAR, _ARC, _FAR]
         # Rows are horizontal in both photos (so that they cannot cross).
@@ -203,28 +203,27 @@ class FeatureLineWarp:
         s_sil = max(widest, 0.0)
         y = float(x[1])
 
-        def point(t):
-            q = at(s_a + direction * t)[0]
-            return np.array([q[0], y, q[1]])
+        def points(t):
+            q = at(s_a + direction * np.asarray(t, float))
+            return np.c_[q[:, 0], np.full(len(q), y), q[:, 1]]
 
-        anchor3 = point(0.0) if midline else np.asarray(x, float)
-        s_anchor = self._side.project(anchor3[None])[0]
-        f_anchor = self._front.project(anchor3[None])[0]
-        ds, df = self._directions(anchor3)
-        side_u, comp_x = [], []
-        for t in _ARC:
-            tt = min(max(t, -L_front), L_back)
-            p = point(tt)
-            u = self._side.project(p[None])[0][0] + ds[0] * (t - tt)
-            if tt <= s_sil:
-                c = self._front.project(p[None])[0][0]
-                c += df[0] * (t - tt)  # beyond the front midline: straight on
-            else:
-                c = self._front.project(point(s_sil)[None])[0][0] + df[0] * (t - s_sil)
-            side_u.append(u)
-            comp_x.append(c)
-        side_u = _monotone(np.array(side_u), np.sign(ds[0]) or 1.0)
-        comp_x = _monotone(np.array(comp_x), np.sign(df[0]) or 1.0)
+        anchor3 = points([0.0])[0] if midline else np.asarray(x, float)
+        # The row's points at the arc offsets (clamped to the outline's ends), with the anchor,
+        # its steps for :meth:`_directions` and the silhouette point: one projection per camera.
+        arc = np.asarray(_ARC, float)
+        tt = np.minimum(np.maximum(arc, -L_front), L_back)
+        p = points(tt)
+        d = 0.01
+        side = self._side.project(np.vstack([anchor3, anchor3 + [0.0, 0.0, -d], p]))
+        front = self._front.project(np.vstack([anchor3, anchor3 + [sig * d, 0.0, 0.0], p, points([s_sil])]))
+        s_anchor, f_anchor = side[0], front[0]
+        ds, df = (side[1] - side[0]) / d, (front[1] - front[0]) / d
+        side_u = side[2:, 0] + ds[0] * (arc - tt)
+        on_face = front[2:-1, 0] + df[0] * (arc - tt)  # beyond the front midline: straight on
+        past_silhouette = front[-1, 0] + df[0] * (arc - s_sil)
+        comp_x = np.where(tt <= s_sil, on_face, past_silhouette)
+        side_u = _monotone(side_u, np.sign(ds[0]) or 1.0)
+        comp_x = _monotone(comp_x, np.sign(df[0]) or 1.0)
         # The far points continue the row's ends straight on.
         su = np.r_[side_u[0] + ds[0] * (-_FAR - _ARC[0]), side_u, side_u[-1] + ds[0] * (_FAR - _ARC[-1])]
         cx = np.r_[comp_x[0] + df[0] * (-_FAR - _ARC[0]), comp_x, comp_x[-1] + df[0] * (_FAR - _ARC[-1])]
