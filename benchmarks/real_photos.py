@@ -17,6 +17,9 @@ annotations, and measures the head against the photos (:mod:`recon.evaluate.real
   head region (hair counted, below the chin left out);
 - ``heldout_profile_line_ipd_pct``, ``heldout_silhouette_iou``: the same in ``side_other``,
   a view the build never saw, through a camera fitted to the points detected there;
+  ``profile_line_refit_ipd_pct``, the profile line of the build's own side photo through a
+  camera fitted that way (the build's own camera is fitted with the shape: this one shows
+  what the refitted camera alone costs, and is what ``--front-only``'s figure compares with);
 - ``identity_distance``: dlib's face-recognition embedding distance (the 128-D ResNet in
   ``face_recognition_models``) between each photo and the textured head rendered from its
   camera; ``identity_distance_other_people``: the same between different people's front
@@ -138,6 +141,16 @@ def measure(name, front, side, other, out: Path, rec: Recogniser, texture_size: 
     for view in ("front", "side"):
         measure_view(fig, pics, head, res.cameras[view].camera, images[view], found.views[view].points, view,
                      facing, rec, res.skin.lighting.get(view))
+    # The same head and photo through a camera fitted as for a photo the build never saw
+    # (to the points detected there alone): what the front-only figure is compared with.
+    try:
+        img, pts, cam, facing_s = unseen_view(head, front, side)
+    except InputError as e:
+        fig["refit_error"] = str(e)
+    else:
+        mask, _ = rp.rendered_mask(head, cam)
+        fig["profile_line_refit_ipd_pct"] = rp.profile_line(rp.head_region(img), mask, pts, facing_s,
+                                                            rp.ipd_px(head, cam))
     if other is not None:
         try:
             img, pts, cam, facing_o = unseen_view(head, front, other)
@@ -346,6 +359,7 @@ def main(argv=None) -> int:
     print(f"point_agreement_kept_ipd_pct: {np.median(pk) if pk else float('nan'):.3f}")
     for key in FIGURES[2:-4]:
         print(f"{key}: {median(key):.3f}")
+    print(f"profile_line_refit_ipd_pct: {median('profile_line_refit_ipd_pct'):.3f}")
     print(f"identity_distance: {median('identity_distance'):.3f}")
     print(f"identity_distance_other_people: {np.median(others) if others else float('nan'):.3f}")
     print(f"skin_delta_e: {median('skin_delta_e'):.3f}")
@@ -397,9 +411,11 @@ def front_only(todo, args, rec: Recogniser, two_photo: dict) -> None:
     pairs = [results[n] for n, _, s in runs if s is not None]
     alone = [results[n] for n, _, s in runs if s is None]
     print(f"front_only_built: {sum(f['built'] for f in results.values())} of {len(results)}")
+    same = [f for n, f in two_photo.items() if "+" not in n]  # the same pairs, their own profiles
     for key in ("profile_line_ipd_pct", "silhouette_iou_side"):
-        same = [f for n, f in two_photo.items() if "+" not in n]  # the same pairs, their own profiles
-        print(f"front_only_{key}: {median(pairs, key):.3f} (two photos: {median(same, key):.3f})")
+        print(f"front_only_{key}: {median(pairs, key):.3f} (two photos: {median(same, key):.3f}"
+              + (f"; through a camera fitted as here: {median(same, 'profile_line_refit_ipd_pct'):.3f})"
+                 if key == "profile_line_ipd_pct" else ")"))
     for key in ("identity_distance", "skin_delta_e", "skin_delta_e_relit", "silhouette_iou_front",
                 "point_agreement_front_ipd_pct"):
         print(f"front_only_portraits_{key}: {median(alone, key):.3f}")
