@@ -76,8 +76,9 @@ class FrontFit:
     cost : float
         The posterior's cost at the solution (lower is better; compares cameras).
     candidates : dict
-        Focal length tried (35 mm-equivalent mm, or ``"orthographic"``) → cost, each over
-        the same points (those left after ``dropped``).
+        Focal length tried (35 mm-equivalent mm, or ``"orthographic"``) → cost over every
+        point, each camera's stray points (left out of its fit) counting
+        :data:`OUTLIER_SDS` squared (a truncated quadratic).
     dropped : dict of str to dict
         Detected points left out because the fitted face missed them by more than
         :data:`OUTLIER_SDS` times their spread (their place is the model's): FP id →
@@ -187,9 +188,9 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
     drop_outliers : bool
         Leave out, one at a time and the worst first, points the fit misses by more than
         :data:`OUTLIER_SDS` spreads (weighted by their confidence), except the face's core
-        (eyes, nose, mouth, chin): for detected points nobody has checked. The camera
-        settings are then compared again on the points kept (and points dropped under the
-        new choice), so that the focal length is chosen by the face, not by a stray point.
+        (eyes, nose, mouth, chin): for detected points nobody has checked. Each camera
+        setting leaves out its own, and the settings are compared by a truncated cost over
+        every point, so that the focal length is chosen by the face, not by a stray point.
     under_hair : collection of str
         Skull points (:data:`recon.shape.hair.UNDER_HAIR`) whose marked place is the
         hair's outline: left out of the fit, then placed under it
@@ -226,30 +227,25 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
         tries["orthographic"] = None
         if estimate_focal:
             tries.update({f"{mm:g}": mm / FILM_DIAGONAL_MM * diag for mm in FOCAL_35MM_CANDIDATES})
-    fits = _fit_cameras(front, ids, weights, generic, model, width, height, tries, point_sd_mm, where)
-    best = min(fits, key=lambda k: fits[k].cost)
-    dropped, settled = {}, True
-    while drop_outliers:
-        # A detected point the fitted face misses by far more than its spread is a
-        # detection gone astray (a busy background, hair over the ear): pinning the head
-        # to it would dent the head, so the model's place for it is kept. Never the core.
-        res = fits[best].residual_mm
-        free = [k for k, i in enumerate(ids) if not is_core(i)]
-        worst = max(free, key=lambda k: res[k] * np.sqrt(weights[k]), default=None)
-        if worst is None or res[worst] * np.sqrt(weights[worst]) <= OUTLIER_SDS * point_sd_mm or len(ids) <= 8:
-            if settled:
-                break
-            # The cameras are compared again on the points kept: a stray point's miss
-            # outweighs what tells one focal length from another, so a choice made with
-            # it is the stray point's, not the face's.
-            fits = _fit_cameras(front, ids, weights, generic, model, width, height, tries, point_sd_mm, where)
-            best, settled = min(fits, key=lambda k: fits[k].cost), True
-            continue
-        dropped[ids[worst]] = {"view": "front", "miss_mm": round(float(res[worst]), 1)}
-        ids, weights = ids[:worst] + ids[worst + 1:], np.delete(weights, worst)
-        fits[best] = _fit_one(front, ids, weights, generic, model, width, height, tries[best], point_sd_mm, where)
-        settled = len(tries) == 1
-    c, cam, _, moved, rms, cost, _ = fits[best]
+    # Each camera setting fitted with its own stray points left out, the settings compared by
+    # a truncated cost over every point (a point left out counts as OUTLIER_SDS² spreads): a
+    # stray point's miss outweighs what tells one focal length from another, and a point one
+    # camera explains (a hairline in a close selfie) need not be stray under another.
+    runs = {}
+    for key, f in tries.items():
+        try:
+            runs[key] = _robust_fit(front, ids, weights, generic, model, width, height, f, point_sd_mm, where,
+                                    drop_outliers)
+        except InputError:
+            if len(tries) == 1:
+                raise
+    if not runs:
+        raise InputError("no camera explains the points marked on the front photo", where=where,
+                         fix="check the points' labels (recon annotate)")
+    score = {key: r[0].cost + OUTLIER_SDS ** 2 * len(r[3]) for key, r in runs.items()}
+    best = min(score, key=score.get)
+    fit, ids, weights, dropped = runs[best]
+    c, cam, _, moved, rms, cost, _ = fit
     head = model.head(generic, c)
     pts = head.fp_positions()
     pos = {i: pts[i] for i in head.feature_points}
@@ -269,23 +265,29 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
     focal = tries[best]
     focal_from = "given" if best == "given" else ("orthographic" if focal is None else "estimated")
     return FrontFit(head, pos, source, c, cam, focal, focal_from, rms, cost,
-                    {key: round(v.cost, 2) for key, v in fits.items()}, dropped)
+                    {key: round(v, 2) for key, v in score.items()}, dropped)
 
 
-def _fit_cameras(front, ids, weights, generic, model, width, height, tries, point_sd_mm, where) -> dict:
-    """:func:`_fit_one` for each camera setting of ``tries`` (key → focal px or None);
-    those no camera pose explains are left out (an error when none is left)."""
-    fits = {}
-    for key, f in tries.items():
-        try:
-            fits[key] = _fit_one(front, ids, weights, generic, model, width, height, f, point_sd_mm, where)
-        except InputError:
-            if len(tries) == 1:
-                raise
-    if not fits:
-        raise InputError("no camera explains the points marked on the front photo", where=where,
-                         fix="check the points' labels (recon annotate)")
-    return fits
+def _robust_fit(front, ids, weights, generic, model, width, height, focal_px, point_sd_mm, where, drop: bool
+                ) -> tuple[_Fit, list, np.ndarray, dict]:
+    """:func:`_fit_one` for one camera setting, and with ``drop`` the points it misses by more
+    than :data:`OUTLIER_SDS` spreads left out one at a time, the worst first (never the face's
+    core): (fit, ids kept, their weights, FP id → record of each point left out)."""
+    fit = _fit_one(front, ids, weights, generic, model, width, height, focal_px, point_sd_mm, where)
+    dropped = {}
+    while drop:
+        # A detected point the fitted face misses by far more than its spread is a
+        # detection gone astray (a busy background, hair over the ear): pinning the head
+        # to it would dent the head, so the model's place for it is kept.
+        res = fit.residual_mm
+        free = [k for k, i in enumerate(ids) if not is_core(i)]
+        worst = max(free, key=lambda k: res[k] * np.sqrt(weights[k]), default=None)
+        if worst is None or res[worst] * np.sqrt(weights[worst]) <= OUTLIER_SDS * point_sd_mm or len(ids) <= 8:
+            break
+        dropped[ids[worst]] = {"view": "front", "miss_mm": round(float(res[worst]), 1)}
+        ids, weights = ids[:worst] + ids[worst + 1:], np.delete(weights, worst)
+        fit = _fit_one(front, ids, weights, generic, model, width, height, focal_px, point_sd_mm, where)
+    return fit, ids, weights, dropped
 
 
 def _under_hair(front: Mapping, ids: list[str], pos: dict, camera, generic: Head) -> dict[str, np.ndarray]:
