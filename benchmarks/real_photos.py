@@ -116,7 +116,6 @@ def measure(name, front, side, other, out: Path, rec: Recogniser, texture_size: 
     from mpeg4.errors import InputError
     from mpeg4.io import read_fdp_json
     from recon.build import run_build
-    from recon.evaluate import real_photos as rp
     from recon.photos import read_photo
 
     fig, pics = {}, {}
@@ -144,25 +143,30 @@ def measure(name, front, side, other, out: Path, rec: Recogniser, texture_size: 
     # The same head and photo through a camera fitted as for a photo the build never saw
     # (to the points detected there alone): what the front-only figure is compared with.
     try:
-        img, pts, cam, facing_s = unseen_view(head, front, side)
+        fig["profile_line_refit_ipd_pct"], *_ = unseen_figures(head, front, side)
     except InputError as e:
         fig["refit_error"] = str(e)
-    else:
-        mask, _ = rp.rendered_mask(head, cam)
-        fig["profile_line_refit_ipd_pct"] = rp.profile_line(rp.head_region(img), mask, pts, facing_s,
-                                                            rp.ipd_px(head, cam))
     if other is not None:
         try:
-            img, pts, cam, facing_o = unseen_view(head, front, other)
+            line, iou, img, cam, mask = unseen_figures(head, front, other)
         except InputError as e:
             fig["heldout_error"] = str(e)
         else:
-            mask, _ = rp.rendered_mask(head, cam)
-            region = rp.head_region(img)
-            fig["heldout_profile_line_ipd_pct"] = rp.profile_line(region, mask, pts, facing_o, rp.ipd_px(head, cam))
-            fig["heldout_silhouette_iou"] = rp.silhouette_iou(region, mask, pts.get("2.1", [0, img.shape[0]])[1])
+            fig["heldout_profile_line_ipd_pct"], fig["heldout_silhouette_iou"] = line, iou
             pics["held-out"] = (img, render_lit(head, cam), mask)
     return fig, pics
+
+
+def unseen_figures(head, front, side) -> tuple:
+    """(profile line % IPD, silhouette IoU, image, camera, rendered mask) of the head against
+    a profile photo through a camera fitted as :func:`unseen_view` fits it."""
+    from recon.evaluate import real_photos as rp
+
+    img, pts, cam, facing = unseen_view(head, front, side)
+    mask, _ = rp.rendered_mask(head, cam)
+    region = rp.head_region(img)
+    line = rp.profile_line(region, mask, pts, facing, rp.ipd_px(head, cam))
+    return line, rp.silhouette_iou(region, mask, pts.get("2.1", [0, img.shape[0]])[1]), img, cam, mask
 
 
 def unseen_view(head, front, side) -> tuple:
