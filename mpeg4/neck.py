@@ -85,18 +85,14 @@ def neck_cut(part: Part) -> np.ndarray | None:
     border = edges[counts == 1]
     if not len(border):
         return None
-    # Loops as connected components of the border edges (label propagation: they are few).
-    verts = np.unique(border)
-    label = {int(v): int(v) for v in verts}
-    changed = True
-    while changed:
-        changed = False
-        for a, b in border:
-            la, lb = label[int(a)], label[int(b)]
-            if la != lb:
-                label[int(a)] = label[int(b)] = min(la, lb)
-                changed = True
-    labels = np.array([label[int(v)] for v in verts])
+    # Loops as connected components of the border edges.
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    verts, pairs = np.unique(border, return_inverse=True)
+    pairs = pairs.reshape(-1, 2)
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(len(verts), len(verts)))
+    _, labels = connected_components(graph, directed=False)
     loops = [verts[labels == k] for k in np.unique(labels)]
     return min(loops, key=lambda idx: part.vertices[idx, 1].mean()).astype(np.int64)
 
