@@ -162,7 +162,9 @@ def region_over_fp(head: Head, n: int, value: float, part: str = "skin") -> floa
     point does not move."""
     fp = FAPS[n].feature_points[0]
     base = _neutral(head)
-    moved = apply_fat(head.fat, base, {n: value}, head.fapu, neck_fade=neck_fade(head).fade)
+    # Only a head turn fades over the neck: the fade is not worth finding for any other FAP.
+    fade = neck_fade(head).fade if n in HEAD_TURN_FAPS else None
+    moved = apply_fat(head.fat, base, {n: value}, head.fapu, neck_fade=fade)
     own = float(np.linalg.norm(head.fp_position(fp, moved) - head.fp_position(fp)))
     if own < 1e-9 or part not in moved:
         return float("nan")
