@@ -242,9 +242,9 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
     if not runs:
         raise InputError("no camera explains the points marked on the front photo", where=where,
                          fix="check the points' labels (recon annotate)")
-    score = {key: r[0].cost + OUTLIER_SDS ** 2 * len(r[3]) for key, r in runs.items()}
+    score = {key: r[0].cost + OUTLIER_SDS ** 2 * len(r[2]) for key, r in runs.items()}
     best = min(score, key=score.get)
-    fit, ids, weights, dropped = runs[best]
+    fit, ids, dropped = runs[best]
     c, cam, _, moved, rms, cost, _ = fit
     head = model.head(generic, c)
     pts = head.fp_positions()
@@ -269,10 +269,10 @@ def fit_front(front: Mapping[str, np.ndarray], width: int, height: int, generic:
 
 
 def _robust_fit(front, ids, weights, generic, model, width, height, focal_px, point_sd_mm, where, drop: bool
-                ) -> tuple[_Fit, list, np.ndarray, dict]:
+                ) -> tuple[_Fit, list, dict]:
     """:func:`_fit_one` for one camera setting, and with ``drop`` the points it misses by more
     than :data:`OUTLIER_SDS` spreads left out one at a time, the worst first (never the face's
-    core): (fit, ids kept, their weights, FP id → record of each point left out)."""
+    core): (fit, ids kept, FP id → record of each point left out)."""
     fit = _fit_one(front, ids, weights, generic, model, width, height, focal_px, point_sd_mm, where)
     dropped = {}
     while drop:
@@ -287,7 +287,7 @@ def _robust_fit(front, ids, weights, generic, model, width, height, focal_px, po
         dropped[ids[worst]] = {"view": "front", "miss_mm": round(float(res[worst]), 1)}
         ids, weights = ids[:worst] + ids[worst + 1:], np.delete(weights, worst)
         fit = _fit_one(front, ids, weights, generic, model, width, height, focal_px, point_sd_mm, where)
-    return fit, ids, weights, dropped
+    return fit, ids, dropped
 
 
 def _under_hair(front: Mapping, ids: list[str], pos: dict, camera, generic: Head) -> dict[str, np.ndarray]:
