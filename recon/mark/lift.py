@@ -146,7 +146,12 @@ class _Surface:
         if parts is None:
             p, _, tri = trimesh.proximity.closest_point(self.mesh, points)
             return np.asarray(tri, dtype=np.int64), p
-        keep = np.flatnonzero(np.isin(self.part_of, [self.names.index(n) for n in parts]))
+        return self._closest_among(points, np.flatnonzero(np.isin(self.part_of, [self.names.index(n) for n in parts])))
+
+    def _closest_among(self, points: np.ndarray, keep: np.ndarray):
+        """:meth:`closest` among the triangles ``keep`` (indices into all parts')."""
+        import trimesh
+
         sub = trimesh.Trimesh(self.vertices, self.triangles[keep], process=False, validate=False)
         p, _, tri = trimesh.proximity.closest_point(sub, points)
         return keep[np.asarray(tri, dtype=np.int64)], p
@@ -154,17 +159,11 @@ class _Surface:
     def closest_on_side(self, point: np.ndarray, towards: np.ndarray) -> tuple[int, np.ndarray]:
         """The closest surface point to ``point`` (3,) among the triangles wholly on the side
         of it that ``towards`` (3,) points to: (triangle, (3,) point)."""
-        import trimesh
-
         point = np.asarray(point, dtype=np.float64)
         ahead = (self.vertices - point) @ np.asarray(towards, dtype=np.float64) >= 0
         keep = np.flatnonzero(ahead[self.triangles].all(axis=1))
-        if not len(keep):
-            tri, p = self.closest(point[None])
-            return int(tri[0]), p[0]
-        sub = trimesh.Trimesh(self.vertices, self.triangles[keep], process=False, validate=False)
-        p, _, tri = trimesh.proximity.closest_point(sub, point[None])
-        return int(keep[int(tri[0])]), p[0]
+        tri, p = self._closest_among(point[None], keep) if len(keep) else self.closest(point[None])
+        return int(tri[0]), p[0]
 
     def piece_of(self, h: Hit) -> np.ndarray:
         """Vertex ids (into all parts) of the connected piece a hit lies on."""
