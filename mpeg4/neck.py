@@ -34,8 +34,8 @@ import numpy as np
 
 from .head import Head, Part
 
-__all__ = ["NECK_SEGMENTS", "RIGID_PREFIXES", "NeckFade", "neck_cut", "neck_fade", "smoothstep", "joint_weights",
-           "partial_turns", "blend_turn", "quat_from_matrix", "matrix_from_quat", "quat_power"]
+__all__ = ["NECK_SEGMENTS", "RIGID_PREFIXES", "NeckFade", "neck_cut", "neck_fade", "smoothstep", "joint_pair",
+           "joint_weights", "partial_turns", "blend_turn", "quat_from_matrix", "matrix_from_quat", "quat_power"]
 
 #: Partial turns the neck is split into (joints: shoulders, K - 1 in the neck, the head).
 NECK_SEGMENTS = 4
@@ -166,6 +166,14 @@ def neck_fade(head: Head) -> NeckFade:
     return NeckFade(fade, pivot, base)
 
 
+def joint_pair(fade: np.ndarray, segments: int = NECK_SEGMENTS) -> tuple[np.ndarray, np.ndarray]:
+    """The two neighbouring joints each vertex blends: (N,) int64 the lower one j (the
+    upper is j + 1), and (N,) float64 the upper one's weight, for (N,) fades in [0, 1]."""
+    s = np.clip(np.asarray(fade, dtype=np.float64), 0.0, 1.0) * segments
+    j = np.minimum(np.floor(s).astype(np.int64), segments - 1)
+    return j, s - j
+
+
 def joint_weights(fade: np.ndarray, segments: int = NECK_SEGMENTS) -> np.ndarray:
     """Skinning weights of the joint chain for per-vertex fades.
 
@@ -181,11 +189,9 @@ def joint_weights(fade: np.ndarray, segments: int = NECK_SEGMENTS) -> np.ndarray
     (N, K + 1) float64
         Rows sum to 1; at most two neighbouring joints weigh in per vertex.
     """
-    s = np.clip(np.asarray(fade, dtype=np.float64), 0.0, 1.0) * segments
-    j = np.minimum(np.floor(s).astype(np.int64), segments - 1)
-    f = s - j
-    w = np.zeros((len(s), segments + 1))
-    rows = np.arange(len(s))
+    j, f = joint_pair(fade, segments)
+    w = np.zeros((len(j), segments + 1))
+    rows = np.arange(len(j))
     w[rows, j] = 1.0 - f
     w[rows, j + 1] = f
     return w

@@ -12,7 +12,7 @@ from ...catalogue import FP_IDS
 from ...errors import InputError
 from ...fat import FaceDefTransform, MorphSpec, fat_to_morph_targets
 from ...head import Head, SparseDisplacement
-from ...neck import NECK_SEGMENTS, joint_weights, neck_fade, quat_power
+from ...neck import NECK_SEGMENTS, joint_pair, neck_fade, quat_power
 from ..atomic import atomic_write
 from .read import FORMAT_VERSION, GlbAnimation
 
@@ -205,12 +205,10 @@ def _glb_bytes(head: Head, animation: GlbAnimation | None) -> bytes:
             prim = g.Primitive(attributes=attrs, indices=w.accessor(idx, "SCALAR", _ELEMENT_ARRAY_BUFFER),
                                material=len(gltf.materials) - 1, mode=4)
             if fade is not None and gi == 0:
-                s = np.clip(fade.fade[pname], 0.0, 1.0)
-                first = np.minimum(np.floor(s * NECK_SEGMENTS), NECK_SEGMENTS - 1).astype(np.int64)
+                first, upper = joint_pair(fade.fade[pname])
                 # The two joints that weigh in; a slot of weight 0 names joint 0, as glTF asks.
-                joints = np.c_[first, first + 1, np.zeros((len(s), 2), np.int64)]
-                weights = np.take_along_axis(joint_weights(s), joints, axis=1).astype(np.float32)
-                weights[:, 2:] = 0.0
+                joints = np.c_[first, first + 1, np.zeros((len(first), 2), np.int64)]
+                weights = np.c_[1.0 - upper, upper, np.zeros((len(first), 2))].astype(np.float32)
                 joints[weights == 0] = 0
                 attrs.JOINTS_0 = w.accessor(joints.astype(np.uint8), "VEC4", _ARRAY_BUFFER)
                 attrs.WEIGHTS_0 = w.accessor(weights, "VEC4", _ARRAY_BUFFER,
