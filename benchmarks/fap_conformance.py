@@ -2,8 +2,8 @@
 
 Plays every ``.fap`` file of the given folders (default: the Xface streams in
 ``../shared/data/fap_streams/xface`` and the six basic expressions built from Greta's
-tables in ``../shared/data/fap_streams/greta``, written to ``.fap`` here: the sum of
-intensity × the action units' FAP values, rising over 0.4 s, held, falling) on the
+tables in ``../shared/data/fap_streams/greta`` (:func:`mpeg4.io.greta.read_expressions`),
+written to ``.fap`` here, rising over 0.4 s, held, falling) on the
 generic head and on the example's reconstructed head (built by the main job into a
 temporary folder), and measures on every frame, played without the head turns:
 
@@ -27,7 +27,6 @@ import math
 import sys
 import tempfile
 import time
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -35,38 +34,18 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 DATA = ROOT.parent / "shared" / "data" / "fap_streams"
-GRETA_BASIC = ("anger", "disgust", "fear", "joy", "sadness", "surprise")
-
-
-def greta_expressions(folder: Path) -> dict[str, dict[int, float]]:
-    """The six basic expressions as FAP values from Greta's tables (action units declared in
-    ``aulibrary.xml``, their intensities in ``facelibrary.xml``; an undeclared unit is
-    skipped)."""
-    units = {}
-    for decl in ET.parse(folder / "aulibrary.xml").getroot().iter("actiondeclaration"):
-        units[decl.get("name")] = {int(f.get("num")): float(f.get("value")) for f in decl.iter("fap")}
-    out = {}
-    for exp in ET.parse(folder / "facelibrary.xml").getroot().iter("expression"):
-        name = exp.get("instance")
-        if name not in GRETA_BASIC:
-            continue
-        values: dict[int, float] = {}
-        for action in exp.iter("action"):
-            intensity = float(action.get("intensity", 1.0))
-            for n, v in units.get(action.get("name"), {}).items():
-                values[n] = values.get(n, 0.0) + intensity * v
-        out[name] = values
-    return out
 
 
 def write_greta_streams(folder: Path, out_dir: Path, fps: float = 25.0) -> list[Path]:
     """Each basic expression as a 2 s ``.fap``: 0.4 s rise, held, 0.4 s fall."""
     from mpeg4.io.fap import FapStream, write_fap
+    from mpeg4.io.greta import BASIC_EXPRESSIONS, read_expressions
 
     n = int(2 * fps)
     ramp = np.clip(np.minimum(np.arange(n), n - 1 - np.arange(n)) / (0.4 * fps), 0.0, 1.0)
     paths = []
-    for name, values in greta_expressions(folder).items():
+    for name, expression in read_expressions(folder, BASIC_EXPRESSIONS).items():
+        values = expression.values
         table = np.full((n, 68), np.nan)
         for f, v in values.items():
             table[:, f - 1] = np.round(ramp * v)

@@ -15,7 +15,9 @@ made it, or pixel by pixel with the reason when the machine differs.
 
 Run: ``python3 scripts/make_gallery.py [--check] [NOTEBOOK ...]`` (``--check`` writes
 nothing and exits 1 when a picture would change). The ICT FaceKit data
-(``../shared/data/ict_facekit``) must be present: the shape-error figure needs it.
+(``../shared/data/ict_facekit``) and Greta's tables (``../shared/data/fap_streams/greta``)
+must be present: the shape-error figure and the expressions written by another system need
+them.
 """
 
 from __future__ import annotations
@@ -112,6 +114,11 @@ def run(paths: list[Path], check: bool = False, say=print) -> int:
     if not default_ict_path().exists():
         print(f"make_gallery: {default_ict_path()}: the ICT FaceKit data is missing, and the shape-error figure "
               "needs it (fix: put ict_facekit.npz there)", file=sys.stderr)
+        return 2
+    greta = ROOT.parent / "shared" / "data" / "fap_streams" / "greta"
+    if not greta.is_dir():
+        print(f"make_gallery: {greta}: Greta's tables are missing, and the expressions figure needs them "
+              "(fix: put aulibrary.xml and facelibrary.xml there)", file=sys.stderr)
         return 2
     manifest = read_manifest()
     pictures = dict(manifest.get("pictures", {}))

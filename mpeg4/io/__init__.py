@@ -7,6 +7,7 @@
 - :mod:`mpeg4.io.ply`: PLY meshes (one part), their feature points in a ``.fdp.json`` beside them;
 - :mod:`mpeg4.io.fdp_json`: ``*.fdp.json`` annotations and 3D feature points;
 - :mod:`mpeg4.io.fap`: MPEG-4 ``.fap`` animation streams;
+- :mod:`mpeg4.io.greta`: Greta's expression tables (action units as FAP values);
 - :mod:`mpeg4.io.atomic`: every writer replaces files atomically.
 
 :func:`load_head` and :func:`save_head` choose the format by the file extension.
