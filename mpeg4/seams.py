@@ -14,7 +14,24 @@ import numpy as np
 from .errors import InputError
 from .head import Head, SparseDisplacement
 
-__all__ = ["split_vertices"]
+__all__ = ["seam_copies", "split_vertices"]
+
+
+def seam_copies(vertices: np.ndarray, decimals: int = 9) -> tuple[np.ndarray, np.ndarray]:
+    """The copies of one place among a part's (N, 3) vertices (the two sides of a seam).
+
+    Returns
+    -------
+    first : (M,) int64
+        The first vertex at each distinct place (coordinates rounded to ``decimals``).
+    inverse : (N,) int64
+        Each vertex's place: ``vertices[first[inverse]]`` is ``vertices`` within rounding.
+    """
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
+    if not len(v):
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    _, first, inverse = np.unique(np.round(v, decimals), axis=0, return_index=True, return_inverse=True)
+    return first.astype(np.int64), inverse.reshape(-1).astype(np.int64)
 
 
 def _extend(indices: np.ndarray, rows: np.ndarray, source: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -30,6 +30,7 @@ from scipy.sparse.linalg import spsolve
 from scipy.spatial import Delaunay
 
 from mpeg4.head import Head
+from mpeg4.surface import bilaplacian
 
 from .interpolate import TriangleIndex
 from .space import alignment_space
@@ -196,34 +197,6 @@ def midway(source_positions: np.ndarray, target_positions: np.ndarray) -> np.nda
     the mean angle and height, the geometric mean radius (frame vertices: their place)."""
     return np.c_[0.5 * (source_positions[:, :2] + target_positions[:, :2]),
                  np.sqrt(source_positions[:, 2] * target_positions[:, 2])]
-
-
-def bilaplacian(vertices: np.ndarray, triangles: np.ndarray) -> sparse.csr_matrix:
-    """(N, N) the bi-Laplacian ``L D⁻¹ L`` of a triangle mesh.
-
-    ``L`` is the cotangent Laplacian (an obtuse angle's negative cotangent clipped to
-    zero, so that it stays an M-matrix) and ``D`` its diagonal, the sum of each vertex's
-    weights: the square of the random-walk Laplacian ``D⁻¹ L``, which weighs every vertex
-    alike. (With lumped areas for ``D`` instead, the finite-element bi-Laplacian, the
-    cloning of ICT FaceKit identities was worse against their ground truth: 7.5 % against
-    6.6 %.)
-    """
-    v = np.asarray(vertices, dtype=np.float64)
-    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    n = len(v)
-    rows, cols, vals = [], [], []
-    for a, b, c in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
-        i, j, k = t[:, a], t[:, b], t[:, c]
-        u, w = v[i] - v[k], v[j] - v[k]
-        cot = (u * w).sum(axis=1) / np.maximum(np.linalg.norm(np.cross(u, w), axis=1), 1e-18)
-        half = 0.5 * np.clip(cot, 0.0, 1e3)
-        rows += [i, j]
-        cols += [j, i]
-        vals += [half, half]
-    w = sparse.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
-    d = np.asarray(w.sum(axis=1)).ravel()
-    lap = sparse.diags(d) - w
-    return (lap @ sparse.diags(1.0 / np.maximum(d, 1e-12)) @ lap).tocsr()
 
 
 def surface_warp(head: Head, space: np.ndarray, tri: FPTriangulation, from_positions: np.ndarray,

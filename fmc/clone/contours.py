@@ -32,10 +32,9 @@ alignment stays the same from either side.
 from __future__ import annotations
 
 import numpy as np
-from scipy import sparse
-from scipy.sparse.csgraph import dijkstra
 
 from mpeg4.head import Head
+from mpeg4.surface import contour_path, edge_graph
 
 __all__ = ["CONTOURS", "edge_graph", "contour_path", "contour_pairs"]
 
@@ -50,74 +49,6 @@ CONTOURS = (
     ("8.3", "2.4"),  # left mouth corner, outer to inner
     ("8.4", "2.5"),  # right mouth corner, outer to inner
 )
-
-# A path longer than this many times the straight distance between its feature points
-# has not found the contour.
-_DETOUR = 1.6
-
-
-def edge_graph(vertices: np.ndarray, triangles: np.ndarray) -> sparse.csr_matrix:
-    """(N, N) symmetric sparse matrix of a mesh's edge lengths, with the copies of one
-    vertex joined.
-
-    A textured head stores each vertex of a texture seam once per side of the seam, at the
-    same place (:func:`mpeg4.seams.split_vertices`): the copies are joined by an edge of
-    (almost) no length, so that paths and distances run across seams. A reconstructed
-    head, the product's main target, has seams through its lips and lids; without the
-    join a contour that crosses one was silently left out of the cloning.
-    """
-    v = np.asarray(vertices, dtype=np.float64)
-    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    n = len(v)
-    e = np.r_[t[:, [0, 1]], t[:, [1, 2]], t[:, [2, 0]]]
-    if n:
-        _, first, inverse = np.unique(np.round(v, 9), axis=0, return_index=True, return_inverse=True)
-        inverse = inverse.reshape(-1)
-        copies = np.flatnonzero(first[inverse] != np.arange(n))
-        e = np.r_[e, np.c_[copies, first[inverse[copies]]]]
-    # The edges both ways, each once (the duplicates summed), then their lengths; a
-    # zero-length edge (joined copies) would read as missing: a tiny length instead.
-    both = sparse.csr_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
-                             shape=(n, n)).tocoo()
-    length = np.maximum(np.linalg.norm(v[both.row] - v[both.col], axis=1), 1e-12)
-    return sparse.csr_matrix((length, (both.row, both.col)), shape=(n, n))
-
-
-def _fp_vertex(head: Head, fp: str) -> int | None:
-    b = head.feature_points.get(fp)
-    if b is None or b.part != "skin" or not len(b.vertices):
-        return None
-    return int(b.vertices[int(np.argmax(b.weights))])
-
-
-def contour_path(head: Head, chain: tuple[str, ...], graph: sparse.csr_matrix | None = None
-                 ) -> list[np.ndarray] | None:
-    """The contour through the feature points ``chain`` on the head's skin: one (K_i,)
-    vertex path per pair of consecutive points, from the first point's vertex (its
-    heaviest, for a point inside a triangle) to the second's; None when a point is
-    missing or not on the skin, or a path strays (longer than :data:`_DETOUR` times the
-    straight distance). ``graph``: the skin's :func:`edge_graph`, if already made."""
-    skin = head.skin
-    verts = [_fp_vertex(head, fp) for fp in chain]
-    if any(k is None for k in verts) or len(set(verts)) < len(verts):
-        return None
-    graph = edge_graph(skin.vertices, skin.triangles) if graph is None else graph
-    reach = _DETOUR * max(np.linalg.norm(skin.vertices[a] - skin.vertices[b]) for a, b in zip(verts[:-1], verts[1:]))
-    dist, pred = dijkstra(graph, indices=verts[:-1], return_predecessors=True, limit=reach)
-    out = []
-    for row, (a, b) in enumerate(zip(verts[:-1], verts[1:])):
-        if not np.isfinite(dist[row, b]):
-            return None
-        path = [b]
-        while path[-1] != a:
-            path.append(pred[row, path[-1]])
-        path = np.array(path[::-1], dtype=np.int64)
-        length = np.linalg.norm(np.diff(skin.vertices[path], axis=0), axis=1).sum()
-        if length > _DETOUR * np.linalg.norm(skin.vertices[a] - skin.vertices[b]):
-            return None
-        out.append(path)
-    return out
-
 
 def _arc(points: np.ndarray) -> np.ndarray:
     s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))]

@@ -24,7 +24,7 @@ from skimage.measure import points_in_poly
 from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.head import Head
 
-from .contours import edge_graph
+from mpeg4.surface import edge_graph
 
 __all__ = ["MOUTH_REGION_FPS", "region_scales", "normalisation", "mouth_scale", "face_scale", "LIP_FPS",
            "UPPER_LIP_FPS", "LOWER_LIP_FPS", "CORNER_FPS", "lip_sides_on_mesh", "lip_classes", "lip_vertex_classes"]

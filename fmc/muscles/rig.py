@@ -14,11 +14,11 @@ from scipy.sparse.csgraph import dijkstra
 from scipy.spatial import ConvexHull
 
 from fmc.author import JAW_PARTS
-from fmc.clone.contours import edge_graph
 from mpeg4.catalogue import FAPS
 from mpeg4.errors import InputError
 from mpeg4.fat import FAT, fap_unit
 from mpeg4.head import Head
+from mpeg4.surface import edge_graph
 
 from .placement import GROUPS, Muscle, _point, load_placement, place_muscles
 
