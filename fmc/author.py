@@ -34,6 +34,7 @@ from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
 from mpeg4.head import Head, SparseDisplacement
 
 from .lip_contours import MOUTH_LINE_FPS, lip_side, mouth_line, share_lips, smooth_partition
+from .separate import separate_tables
 
 __all__ = ["JAW_PARTS", "JAW_FAPS", "moving_parts", "REGIONS", "ADJACENT", "region_of", "unrelated",
            "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit",
@@ -221,7 +222,7 @@ def unrelated(fp_id: str, ids: list[str]) -> np.ndarray:
 
 
 def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak_tol: float = 0.20,
-                       faps=None) -> tuple[FAT, list[FapFit]]:
+                       faps=None, separate: bool = True) -> tuple[FAT, list[FapFit]]:
     """FATs for the low-level FAPs of ``head`` from its morph targets.
 
     Parameters
@@ -236,6 +237,9 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
         otherwise the FAP falls back to a local displacement field.
     faps : iterable of int, optional
         FAPs to author (default 3..68).
+    separate : bool
+        Take out of each table what it does to other FAPs' points
+        (:func:`fmc.separate.separate_tables`); False keeps the shapes' motion as it is.
 
     Returns
     -------
@@ -314,8 +318,10 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
             err_all, leak_all = max(err_all, fit_err), max(leak_all, leak)
         fat.add(_mesh_table(head, n, meshes_by_sign, value, unit))
         report.append(FapFit(n, route, err_all, leak_all, weights))
-    # Each of the sculpted shapes moves the whole lip: the lip FAPs share it (fmc.lip_contours).
-    return share_lips(head, fat), report
+    # Each of the sculpted shapes moves the whole lip: the lip FAPs share it (fmc.lip_contours);
+    # and much more than its own point: each table leaves the others' points (fmc.separate).
+    fat = share_lips(head, fat)
+    return (separate_tables(head, fat, keep=JAW_FAPS) if separate else fat), report
 
 
 def brow_partition(head: Head, x: np.ndarray) -> np.ndarray:

@@ -13,8 +13,9 @@ from importlib import resources
 import numpy as np
 from scipy.optimize import brentq, nnls
 
-from fmc.author import FapFit, _falloff, _special, unrelated
+from fmc.author import JAW_FAPS, FapFit, _falloff, _special, unrelated
 from fmc.lip_contours import share_lips
+from fmc.separate import separate_tables
 from mpeg4.catalogue import FAPS, FP_IDS
 from mpeg4.errors import InputError
 from mpeg4.fat import FAT, HIGH_LEVEL_UNIT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
@@ -63,7 +64,7 @@ def _diff(moved: dict, neutral: dict) -> dict:
 
 
 def author_from_muscles(head: Head, value: float = 512.0, tol: float = 0.10, leak_tol: float = 0.20,
-                        faps=None, rig: MuscleRig | None = None) -> tuple[FAT, list[FapFit]]:
+                        faps=None, rig: MuscleRig | None = None, separate: bool = True) -> tuple[FAT, list[FapFit]]:
     """FATs for the low-level FAPs of ``head`` from FaceEngine's hybrid model.
 
     Parameters
@@ -83,6 +84,9 @@ def author_from_muscles(head: Head, value: float = 512.0, tol: float = 0.10, lea
     rig : MuscleRig, optional
         A placed model (default: placed from ``fmc/data/muscles.toml``); its FAP mapping
         (:attr:`MuscleRig.actions`) is filled in.
+    separate : bool
+        Take out of each table what it does to other FAPs' points
+        (:func:`fmc.separate.separate_tables`); False keeps the model's motion as it is.
 
     Returns
     -------
@@ -198,8 +202,10 @@ def author_from_muscles(head: Head, value: float = 512.0, tol: float = 0.10, lea
         if "falloff" in route:
             rig.fallback.add(_falloff_only(table, rig, n, signs, head, value, unit, samples))
         report.append(FapFit(n, route, err_all, leak_all, weights))
-    # A muscle moves the whole lip: the lip FAPs share it (fmc.lip_contours).
-    return share_lips(head, fat), report
+    # A muscle moves the whole lip: the lip FAPs share it (fmc.lip_contours); and other FAPs'
+    # points: each table leaves them (fmc.separate).
+    fat = share_lips(head, fat)
+    return (separate_tables(head, fat, keep=JAW_FAPS) if separate else fat), report
 
 
 def _falloff_only(table, rig, n, signs, head, value, unit, samples):
