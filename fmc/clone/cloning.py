@@ -22,8 +22,6 @@ from mpeg4.catalogue import FAPS, FAPU_DEFINITIONS, FP_IDS
 from mpeg4.errors import InputError
 from mpeg4.head import Head, SparseDisplacement
 
-from ..author import JAW_FAPS
-from ..separate import separate_tables
 from .align import folded_triangles, midway, outer_radius, surface_warp, triangulation_for, vertex_positions, warp
 from .contours import contour_pairs
 from .followers import surface_followers
@@ -515,9 +513,6 @@ def clone(source: Head, target: Head, antialias: float | None = 0.0, triangulati
         for key, table in transforms.items():
             if key not in out.fat:
                 out.fat.add(table)
-        # The source's tables leave each other's points; cloned, they nearly do: exactly again
-        # on the target's own points (fmc.separate).
-        out.fat = separate_tables(out, keep=JAW_FAPS)
     out.metadata = dict(out.metadata, cloned_from=str(source.metadata.get("name", "source head")))
     return out, sorted(set(warnings))
 
