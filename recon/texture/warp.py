@@ -20,7 +20,6 @@ import numpy as np
 
 from mpeg4.errors import InputError
 
-from .bake import rasterize
 from .cameras import FittedCamera
 
 __all__ = ["FEATURE_LINE", "FeatureLineWarp", "sections"]
@@ -251,30 +250,7 @@ class FeatureLineWarp:
     def forward(self, side_px: np.ndarray) -> np.ndarray:
         """(K, 2) composite-frame pixels of (K, 2) side-photo pixels."""
         p = np.asarray(side_px, dtype=np.float64).reshape(-1, 2)
-        grid = self.source.reshape(self._shape + (2,))
-        v_rows = grid[:, 0, 1]  # every row is horizontal in the side photo
-        r = np.clip(np.searchsorted(v_rows, p[:, 1]) - 1, 0, len(v_rows) - 2)
-        a = (p[:, 1] - v_rows[r]) / (v_rows[r + 1] - v_rows[r])
-        # Where the quads' sides cross the point's height, left to right.
-        sides = grid[r, :, 0] * (1 - a[:, None]) + grid[r + 1, :, 0] * a[:, None]  # (K, C)
-        increasing = sides[:, -1] >= sides[:, 0]
-        key = np.where(increasing[:, None], sides, -sides)
-        c = np.clip((key < np.where(increasing, p[:, 0], -p[:, 0])[:, None]).sum(axis=1) - 1, 0, self._shape[1] - 2)
-        n_quads = (self._shape[0] - 1) * (self._shape[1] - 1)
-        quad = r * (self._shape[1] - 1) + c
-        out = np.empty_like(p)
-        for half in (0, 1):  # the quad's two triangles: try the first, else the second
-            tri = self.simplices[quad + half * n_quads]
-            corners = self.source[tri]
-            bary = _bary(p, corners)
-            ok = bary.min(axis=1) >= -1e-9
-            if half == 0:
-                first_ok = ok
-                out[ok] = np.einsum("kc,kcd->kd", bary[ok], self.target[tri[ok]])
-            else:
-                rest = ~first_ok
-                out[rest] = np.einsum("kc,kcd->kd", bary[rest], self.target[tri[rest]])
-        return out
+        return _piecewise_affine(p, self.source, self.target, self._shape, self.simplices)
 
     def inverse_map(self, grid_to_composite: np.ndarray, size: tuple[int, int]) -> np.ndarray:
         """(H, W, 2) float32 side-photo pixels for a grid of composite-frame points.
@@ -286,14 +262,57 @@ class FeatureLineWarp:
         size : (height, width)
             The grid. Points outside the warp get (-1, -1).
         """
-        inv = np.linalg.inv(np.asarray(grid_to_composite, dtype=np.float64))
-        corners = (np.c_[self.target, np.ones(len(self.target))] @ inv.T)[:, :2]
-        ids, bary = rasterize(corners, self.simplices, size)
-        src = self.source[self.simplices]  # (T, 3, 2)
-        out = np.full(tuple(size) + (2,), -1.0, dtype=np.float32)
-        ys, xs = np.nonzero(ids >= 0)
-        out[ys, xs] = np.einsum("kc,kcd->kd", bary[ys, xs], src[ids[ys, xs]])
-        return out
+        h, w = int(size[0]), int(size[1])
+        ys, xs = np.mgrid[0:h, 0:w]
+        grid = np.c_[xs.ravel(), ys.ravel(), np.ones(h * w)] @ np.asarray(grid_to_composite, dtype=np.float64).T
+        # The composite frame's rows are horizontal too: the same search as forward's, the
+        # other way (no rasterising of the triangles).
+        out = _piecewise_affine(grid[:, :2], self.target, self.source, self._shape, self.simplices, outside=-1.0)
+        return out.reshape(h, w, 2).astype(np.float32)
+
+
+def _piecewise_affine(p: np.ndarray, frm: np.ndarray, to: np.ndarray, shape: tuple[int, int], simplices: np.ndarray,
+                      outside: float | None = None) -> np.ndarray:
+    """(K, 2) images of points (K, 2) under the piecewise-affine map taking the control
+    grid ``frm`` onto ``to`` ((R x C, 2) pixels, row-major, ``shape`` = (R, C)) triangle by
+    triangle (``simplices``: each quad's (a, b, c) halves, then all its (b, d, c) halves).
+
+    Every row of ``frm`` is horizontal and the rows run downwards, so a point's row is one
+    search by height, its quad one count of the quads' sides left of it at that height and
+    its half the side of the quad's diagonal it lies on. Points beyond the grid get
+    ``outside``, or (None) the nearest quad's affine map extended.
+    """
+    n_rows, n_cols = shape
+    gx = frm[:, 0].reshape(n_rows, n_cols)
+    v_rows = frm[::n_cols, 1]
+    x, y = p[:, 0], p[:, 1]
+    r = np.clip(np.searchsorted(v_rows, y) - 1, 0, n_rows - 2)
+    a = (y - v_rows[r]) / (v_rows[r + 1] - v_rows[r])
+    # Where the quads' sides cross the point's height, left to right (or right to left).
+    sides = np.take(gx[:-1], r, axis=0)
+    sides += np.take(np.diff(gx, axis=0), r, axis=0) * a[:, None]  # (K, C)
+    sign = np.where(sides[:, -1] >= sides[:, 0], 1.0, -1.0)
+    sides -= x[:, None]
+    sides *= sign[:, None]  # < 0: the side lies before the point
+    c = np.clip((sides < 0).sum(axis=1) - 1, 0, n_cols - 2)
+    quad = r * (n_cols - 1) + c
+    # The (a, b, c) half holds the point when it lies on a's side of the diagonal b–c.
+    tri = simplices[quad]
+    pa, pb, pc = frm[tri[:, 0]], frm[tri[:, 1]], frm[tri[:, 2]]
+    e = pc - pb
+    side_p = e[:, 0] * (y - pb[:, 1]) - e[:, 1] * (x - pb[:, 0])
+    side_a = e[:, 0] * (pa[:, 1] - pb[:, 1]) - e[:, 1] * (pa[:, 0] - pb[:, 0])
+    second = side_p * side_a < 0
+    tri = quad + np.where(second, (n_rows - 1) * (n_cols - 1), 0)
+    # Each triangle's affine map, (T, 2, 3): to = M [frm; 1], applied by a look-up per point.
+    corners = np.concatenate([frm[simplices], np.ones(simplices.shape + (1,))], axis=2)  # (T, 3, 3)
+    M = np.einsum("tec,tcd->tde", np.linalg.inv(corners), to[simplices])
+    out = np.empty_like(p)
+    for k in range(2):
+        out[:, k] = M[tri, k, 0] * x + M[tri, k, 1] * y + M[tri, k, 2]
+    if outside is not None:
+        out[(y < v_rows[0]) | (y > v_rows[-1]) | (sides[:, 0] > 0) | (sides[:, -1] < 0)] = outside
+    return out
 
 
 def _descending(anchors: np.ndarray, is_fp: np.ndarray, side: FittedCamera, front: FittedCamera,
