@@ -211,8 +211,8 @@ class Camera:
         cx, cy = self.principal
         if self.perspective:
             s = self.focal_px / -c[:, 2]
-            return np.c_[cx + c[:, 0] * s, cy - c[:, 1] * s]
-        return np.c_[cx + c[:, 0] * self.scale_px, cy - c[:, 1] * self.scale_px]
+            return np.stack([cx + c[:, 0] * s, cy - c[:, 1] * s], axis=1)
+        return np.stack([cx + c[:, 0] * self.scale_px, cy - c[:, 1] * self.scale_px], axis=1)
 
     def gl_matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """(4, 4) float64 view and projection matrices (row-major) matching :meth:`project`.

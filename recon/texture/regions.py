@@ -24,7 +24,7 @@ from mpeg4.head import Head
 from mpeg4.render import Camera, render
 
 from .cameras import FittedCamera
-from .warp import FEATURE_LINE, sections
+from .warp import FEATURE_LINE, convex_outline, sections
 
 __all__ = ["REGIONS", "FRONT", "SEEN", "MIRRORED", "HIDDEN", "FOLD", "line_ids", "feature_line", "feature_polygon",
            "vertex_regions", "line_depth", "triangle_regions", "split_by_region"]
@@ -73,14 +73,11 @@ def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, 
     v = np.asarray(skin_vertices, float)
     heights = np.arange(fps[-1, 1] - _NECK_STEP, v[:, 1].min() + 0.004, -_NECK_STEP)
     neck = []
-    from scipy.spatial import ConvexHull
-
     for y, xz in zip(heights, sections(v, skin_triangles, heights)):
         if (xz[:, 0] * sign > 0).sum() < 3:
             break
-        try:
-            hull = xz[ConvexHull(xz).vertices]
-        except Exception:  # a degenerate section: the line ends here
+        hull = convex_outline(xz)
+        if hull is None:  # a degenerate section: the line ends here
             break
         # The outline's point that faces half way between the two cameras (its support
         # point along the 45° direction): both photos see the neck there at 45°, not the
