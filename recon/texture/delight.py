@@ -64,6 +64,7 @@ MIN_MEAN_SHADING = 0.3
 MAX_BURNT = 0.02
 
 _LUMA = np.array([0.299, 0.587, 0.114])
+_DECODE = (np.arange(256, dtype=np.float32) / np.float32(127.5) - np.float32(1.0)).reshape(1, 256)  # byte → n
 _STRIDE = 3  # pixels: the fit takes every third pixel each way
 _SMOOTH_PX = 2.0  # the shading's blur, pixels
 
@@ -145,10 +146,13 @@ def normal_image(head: Head, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
 def decode_normals(encoded: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """(H, W, 3) float32 unit normals from :func:`normal_image`'s (H, W, 3) uint8 colours,
     zero outside the (H, W) bool ``mask``."""
-    n = encoded.astype(np.float32) / 127.5 - 1.0
-    n /= np.maximum(np.sqrt(np.einsum("ijk,ijk->ij", n, n)), 1e-6)[..., None]
-    n[~mask] = 0.0
-    return n
+    # A look-up table per byte, then each plane scaled by the inverse length (zero off the
+    # mask): OpenCV on contiguous planes, several times faster than numpy's broadcasting.
+    x, y, z = cv2.split(cv2.LUT(np.asarray(encoded, np.uint8), _DECODE))
+    length = cv2.sqrt(x * x + y * y + z * z)
+    inverse = np.divide(np.float32(1.0), np.maximum(length, np.float32(1e-6)))
+    inverse[~np.asarray(mask, bool)] = 0.0
+    return cv2.merge([x * inverse, y * inverse, z * inverse])
 
 
 def skin_weight(head: Head, camera: Camera, weights: np.ndarray, stride: int = 1,
@@ -264,15 +268,25 @@ def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, 
     y = luma[sel].astype(np.float64)
     w = np.ones(len(y))
     damp = np.diag([0.0] + [1.0] * 8)
+    # The 9 x 9 normal matrix is a weighted sum of the pixels' products of two harmonics:
+    # the 45 distinct products once, then one (45,) sum a pass (einsum's own loop; a
+    # threaded BLAS product waits on its threads whenever the cores are busy).
+    iu = np.triu_indices(9)
+    Bt = np.ascontiguousarray(B.T)
+    products = np.empty((len(iu[0]), len(B)))  # (45, K), row by row in triu_indices' order
+    start = 0
+    for i in range(9):
+        np.multiply(Bt[i], Bt[i:], out=products[start:start + 9 - i])
+        start += 9 - i
     for _ in range(iterations):
-        BW = B * w[:, None]
-        # The 9 x 9 normal matrix by einsum's own loop: a threaded BLAS product of this
-        # shape (K x 9) waits on its threads whenever the cores are busy (8 ms, not 0.3).
-        A = np.einsum("ki,kj->ij", BW, B)
-        c = np.linalg.solve(A + ridge * np.trace(A) / 9 * damp, BW.T @ y)
+        A = np.zeros((9, 9))
+        A[iu] = np.einsum("pk,k->p", products, w)
+        A = A + np.triu(A, 1).T
+        c = np.linalg.solve(A + ridge * np.trace(A) / 9 * damp, np.einsum("ik,k->i", Bt, w * y))
         fit = B @ c
         r = y / np.maximum(fit, 1e-6) - 1.0
-        s = 1.4826 * np.median(np.abs(r[w > 0] - np.median(r[w > 0]))) + 1e-6
+        kept = r[w > 0]
+        s = 1.4826 * np.median(np.abs(kept - np.median(kept))) + 1e-6
         u = r / (4.685 * s)
         w = np.where(np.abs(u) < 1, (1 - u * u) ** 2, 0.0)
     fitted = B @ c
@@ -358,7 +372,9 @@ def delight_photo(head: Head, photo: np.ndarray, camera: Camera, mask: np.ndarra
     weight = skin_weight(head, camera, fit_mask(head) if mask is None else mask, _STRIDE, (x0, y0, x1, y1))
     crop = photo[box]
     light = fit_lighting(crop, decode_normals(encoded[box], head_mask[box]), head_mask[box], weight)
-    albedo = np.clip(np.round(crop.astype(np.float32) / light.shading[..., None]), 0, 255).astype(np.uint8)
+    # Rounded and saturated to bytes by OpenCV (the quotient is never negative, so its
+    # absolute value is itself).
+    albedo = cv2.convertScaleAbs(cv2.divide(crop.astype(np.float32), cv2.merge([light.shading] * 3)))
     sub = np.s_[::_STRIDE, ::_STRIDE]
     light.fallback = judge(crop[sub], albedo[sub], light, head_mask[box][sub] & (weight > 0.5))
     # Back to the photo's frame.
