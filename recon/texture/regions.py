@@ -102,7 +102,8 @@ def _visible(points: np.ndarray, cam: Camera, depth: np.ndarray) -> np.ndarray:
     neighbourhood is what it is compared with, which keeps surfaces seen at grazing angles
     (their depth changes fast from pixel to pixel) and points on the silhouette.
     """
-    far = cv2.dilate(np.where(np.isfinite(depth), depth, 1e9).astype(np.float32), np.ones((5, 5), np.uint8))
+    # (Nothing drawn is +inf, the largest of all: a point beside the silhouette is seen.)
+    far = cv2.dilate(np.asarray(depth, np.float32), np.ones((5, 5), np.uint8))
     px = np.round(cam.project(points)).astype(np.int64)
     h, w = depth.shape
     inside = (px[:, 0] >= 0) & (px[:, 0] < w) & (px[:, 1] >= 0) & (px[:, 1] < h)

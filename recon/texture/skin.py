@@ -289,7 +289,7 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     grid = max(1, size // 256)  # the warps are piecewise affine: a coarse map, linearly refined
     coarse = (int(np.ceil(size / grid)) + 1,) * 2
     G = np.linalg.inv(A) @ np.diag([grid, grid, 1.0])  # coarse grid pixel → composite pixel
-    for photo in () if front_only else (fill["side"], np.ascontiguousarray(fill["side"][:, ::-1])):
+    for photo in () if front_only else (fill["side"], cv2.flip(fill["side"], 1)):
         warp = warps[SEEN] if len(layers) == 1 else warps[MIRRORED]
         cmap = warp.inverse_map(G, coarse)
         # Texel (x, y) sits at (x / grid, y / grid) on the coarse map: an affine resampling
