@@ -199,7 +199,7 @@ def fit_mask(head: Head) -> np.ndarray:
     so not the back of the head and its hair), away from the eyes and lids (3.5, 3.6), the
     brows (4.x), the lips (8.x) and the nostrils (9.1, 9.2, 9.15).
     """
-    from scipy.spatial import cKDTree
+    from scipy.spatial.distance import cdist
 
     v = head.skin.vertices
     fp = head.fp_positions()
@@ -216,9 +216,8 @@ def fit_mask(head: Head) -> np.ndarray:
             keep &= np.sum(d * d, axis=1) > 1.0
     for prefix, r in (("4.", 0.01), ("8.", 0.008), ("9.", 0.007)):
         pts = [fp[i] for i in fp if i.startswith(prefix) and (prefix != "9." or i in ("9.1", "9.2", "9.15"))]
-        if pts:
-            d, _ = cKDTree(np.array(pts)).query(v)
-            keep &= d > r
+        if pts:  # a few points: all their distances at once (a tree costs more)
+            keep &= cdist(v, np.array(pts)).min(axis=1) > r
     lips = [fp[i] for i in fp if i.startswith("8.")]
     if lips:  # inside the lips' box too (the contour points are sparse)
         lp = np.array(lips)
