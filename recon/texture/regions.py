@@ -13,6 +13,7 @@ duplicated (:func:`split_by_region`), so that each corner samples its own layer.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 
 import cv2
@@ -125,9 +126,26 @@ def _seen_from_around(head: Head, points: np.ndarray, size: int = 384) -> np.nda
     allv = np.concatenate([m.vertices for m in meshes])
     out = np.zeros(len(points), dtype=bool)
     for yaw, pitch in _AROUND:
+        todo = np.flatnonzero(~out)  # a point one camera sees needs no other
+        if not len(todo):
+            break
         cam = Camera.fit(allv, size, size, yaw_deg=yaw, pitch_deg=pitch, margin=0.02)
-        out |= _visible(points, cam, _depth(meshes, cam))
+        out[todo] = _seen_in_box(points[todo], meshes, cam)
     return out
+
+
+def _seen_in_box(points: np.ndarray, meshes, cam: Camera) -> np.ndarray:
+    """(K,) bool: :func:`_visible` of (K, 3) points, the depth rendered only over the
+    points' box of pixels and their 5 x 5 neighbourhoods (a camera with the same pixel
+    centres there): the same test with a quarter less of the renderer's work."""
+    px = np.round(cam.project(points)).astype(np.int64)
+    x0, y0 = np.maximum(px.min(axis=0) - 2, 0)
+    x1, y1 = np.minimum(px.max(axis=0) + 3, (cam.width, cam.height))
+    if x0 >= x1 or y0 >= y1:  # every point beside the image
+        return np.zeros(len(points), dtype=bool)
+    cx, cy = cam.principal
+    box = dataclasses.replace(cam, width=int(x1 - x0), height=int(y1 - y0), principal=(cx - x0, cy - y0))
+    return _visible(points, box, _depth(meshes, box))
 
 
 def vertex_regions(vertices: np.ndarray, polygon_px: np.ndarray, front_px: np.ndarray, line_depth: np.ndarray,

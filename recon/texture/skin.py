@@ -51,8 +51,8 @@ from .bake import fill_empty
 from .blend import blend_multiband
 from .cameras import FittedCamera
 from .regions import (FOLD, FRONT, HIDDEN, MIRRORED, REGIONS, SEEN, _depth, _folds, _head_meshes, _seen_from_around,
-                      _visible, feature_line, feature_polygon, line_depth, split_by_region, triangle_regions,
-                      vertex_regions)
+                      _seen_in_box, _visible, feature_line, feature_polygon, line_depth, split_by_region,
+                      triangle_regions, vertex_regions)
 from .warp import FeatureLineWarp
 
 __all__ = ["SkinTexture", "photo_background", "texture_skin", "textured_head"]
@@ -211,8 +211,9 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
         from .delight import normal_image
 
         normals = {key: normal_image(head, cams[key].camera) for key in photos}
-    depth = {k: normals[k][1] if k in normals else _depth(meshes, cam.camera) for k, cam in cams.items()}
-    seen = {k: _visible(V, cams[k].camera, depth[k]) for k in cams}
+    depth = {k: normals[k][1] if k in normals else _depth(meshes, cams[k].camera) for k in photos}
+    seen = {k: _visible(V, cams[k].camera, depth[k]) if k in depth else _seen_in_box(V, meshes, cams[k].camera)
+            for k in cams}  # no photo, no image: the depth over the head's box only
     anywhere = seen["front"] | seen["side"] | seen["mirrored"]
     anywhere[~anywhere] = _seen_from_around(head, V[~anywhere])
     times["visibility"] = time.perf_counter() - t0
