@@ -146,13 +146,18 @@ def normal_image(head: Head, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
 def decode_normals(encoded: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """(H, W, 3) float32 unit normals from :func:`normal_image`'s (H, W, 3) uint8 colours,
     zero outside the (H, W) bool ``mask``."""
+    return cv2.merge(_normal_planes(encoded, mask))
+
+
+def _normal_planes(encoded: np.ndarray, mask: np.ndarray) -> list[np.ndarray]:
+    """:func:`decode_normals` as its three (H, W) float32 planes x, y, z."""
     # A look-up table per byte, then each plane scaled by the inverse length (zero off the
     # mask): OpenCV on contiguous planes, several times faster than numpy's broadcasting.
     x, y, z = cv2.split(cv2.LUT(np.asarray(encoded, np.uint8), _DECODE))
     length = cv2.sqrt(x * x + y * y + z * z)
     inverse = np.divide(np.float32(1.0), np.maximum(length, np.float32(1e-6)))
     inverse[~np.asarray(mask, bool)] = 0.0
-    return cv2.merge([x * inverse, y * inverse, z * inverse])
+    return [x * inverse, y * inverse, z * inverse]
 
 
 def skin_weight(head: Head, camera: Camera, weights: np.ndarray, stride: int = 1,
@@ -235,7 +240,7 @@ def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, 
     Parameters
     ----------
     photo : (H, W, 3) uint8
-    normals : (H, W, 3) float32
+    normals : (H, W, 3) float32, or its three (H, W) planes
         Unit normals, camera frame (:func:`decode_normals`).
     head_mask : (H, W) bool
         Where the head is drawn.
@@ -263,7 +268,9 @@ def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, 
     if sel.sum() < 200:
         raise InputError(f"only {int(sel.sum())} pixels of skin to fit the photo's lighting to", where="de-lighting",
                          fix="check the head's fit to the photo, or keep the photo's lighting (--keep-lighting)")
-    B = sh_basis(normals[sub][sel])
+    # Contiguous planes: faster arithmetic.
+    nx, ny, nz = cv2.split(np.asarray(normals, np.float32)) if isinstance(normals, np.ndarray) else normals
+    B = sh_basis(np.stack([nx[sub][sel], ny[sub][sel], nz[sub][sel]], axis=1))
     y = luma[sel].astype(np.float64)
     w = np.ones(len(y))
     damp = np.diag([0.0] + [1.0] * 8)
@@ -294,9 +301,8 @@ def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, 
         raise InputError("the fitted lighting is dark everywhere", where="de-lighting",
                          fix="keep the photo's lighting (--keep-lighting)")
     k = (c / peak).astype(np.float32)
-    x, y, z = cv2.split(np.asarray(normals, np.float32))  # contiguous planes: faster arithmetic
-    full = (k[0] - k[8] + x * (k[1] + k[4] * y + k[5] * z + k[7] * x) + y * (k[2] + k[6] * z - k[7] * y)
-            + z * (k[3] + 3 * k[8] * z))
+    full = (k[0] - k[8] + nx * (k[1] + k[4] * ny + k[5] * nz + k[7] * nx) + ny * (k[2] + k[6] * nz - k[7] * ny)
+            + nz * (k[3] + 3 * k[8] * nz))
     # The normals come from an 8-bit render: smooth their quantisation steps out of the
     # shading (which is smooth anyway) within the head, so that they do not band the albedo.
     full[~head_mask] = 0.0
@@ -370,7 +376,7 @@ def delight_photo(head: Head, photo: np.ndarray, camera: Camera, mask: np.ndarra
     box = np.s_[y0:y1, x0:x1]
     weight = skin_weight(head, camera, fit_mask(head) if mask is None else mask, _STRIDE, (x0, y0, x1, y1))
     crop = photo[box]
-    light = fit_lighting(crop, decode_normals(encoded[box], head_mask[box]), head_mask[box], weight)
+    light = fit_lighting(crop, _normal_planes(encoded[box], head_mask[box]), head_mask[box], weight)
     # Rounded and saturated to bytes by OpenCV (the quotient is never negative, so its
     # absolute value is itself).
     albedo = cv2.convertScaleAbs(cv2.divide(crop.astype(np.float32), cv2.merge([light.shading] * 3)))
