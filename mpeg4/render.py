@@ -358,7 +358,6 @@ void main() {
 }
 """
 
-
 class _GL:
     """The process's EGL context with the shader program compiled once."""
 
@@ -541,11 +540,17 @@ def render(meshes: Sequence[RenderMesh], camera: Camera, background=(1.0, 1.0, 1
         image = np.frombuffer(image, np.uint8).reshape(h, w, 3)[::-1].copy()
         if not return_depth:
             return image
-        depth = np.frombuffer(single.read(components=1, attachment=1, dtype="f4"), np.float32)
-        depth = depth.reshape(h, w)[::-1].astype(np.float64)
-        z = np.frombuffer(single.read(components=1, attachment=-1, dtype="f4"), np.float32).reshape(h, w)[::-1]
-        depth[z >= 1.0] = np.inf  # untouched by any triangle
-        return image, depth
+        return image, _read_depth(single, 1, w, h)
     finally:
         for r in resources:
             r.release()
+
+
+def _read_depth(fbo, attachment: int, w: int, h: int) -> np.ndarray:
+    """(H, W) float64 depth from a framebuffer's float attachment, inf where its depth
+    buffer was not touched by any triangle; row 0 at the top."""
+    depth = np.frombuffer(fbo.read(components=1, attachment=attachment, dtype="f4"), np.float32)
+    depth = depth.reshape(h, w)[::-1].astype(np.float64)
+    z = np.frombuffer(fbo.read(components=1, attachment=-1, dtype="f4"), np.float32).reshape(h, w)[::-1]
+    depth[z >= 1.0] = np.inf
+    return depth

@@ -20,9 +20,10 @@ import cv2
 import numpy as np
 
 from mpeg4.catalogue import FEATURE_POINTS
+from mpeg4.depth import render_depth
 from mpeg4.errors import InputError
 from mpeg4.head import Head
-from mpeg4.render import Camera, render
+from mpeg4.render import Camera
 
 from .cameras import FittedCamera
 from .warp import FEATURE_LINE, convex_outline, sections
@@ -280,5 +281,4 @@ def _head_meshes(head: Head):
 
 
 def _depth(meshes, cam: Camera) -> np.ndarray:
-    _, depth = render(meshes, cam, return_depth=True, samples=0)
-    return depth
+    return render_depth(meshes, cam)
