@@ -49,7 +49,8 @@ import numpy as np
 
 from mpeg4.errors import InputError
 from mpeg4.head import Head
-from mpeg4.render import Camera, RenderMesh, render, vertex_normals
+from mpeg4.render import Camera, RenderMesh, vertex_normals
+from mpeg4.unlit import render_unlit
 
 __all__ = ["Lighting", "MIN_SHADING", "MIN_MEAN_SHADING", "MAX_BURNT", "sh_basis", "normal_image", "decode_normals",
            "skin_weight", "fit_mask", "fit_lighting", "judge", "delight_photo"]
@@ -137,10 +138,10 @@ def normal_image(head: Head, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
     R = camera.rotation
     for p in head.parts.values():
         n = vertex_normals(p.vertices, p.triangles)
-        # Unlit (ambient 1): the normals given only spare the renderer computing them again.
+        # Unlit: the normals given only spare the renderer computing them again.
         meshes.append(RenderMesh(p.vertices, p.triangles, normals=n, vertex_colours=0.5 + 0.5 * (n @ R.T),
                                  colour=(1.0, 1.0, 1.0)))
-    return render(meshes, camera, background=(0.5, 0.5, 0.5), return_depth=True, samples=0, ambient=1.0)
+    return render_unlit(meshes, camera, background=(0.5, 0.5, 0.5), return_depth=True)
 
 
 def decode_normals(encoded: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -190,10 +191,10 @@ def skin_weight(head: Head, camera: Camera, weights: np.ndarray, stride: int = 1
     meshes = []
     for name, p in head.parts.items():
         w = np.asarray(weights, float) if name == "skin" else np.zeros(len(p.vertices))
-        # Unlit (ambient 1), so any unit normal will do (not zero: GLSL cannot normalise it).
+        # Unlit, so any normal will do (given, so that the renderer need not compute them).
         meshes.append(RenderMesh(p.vertices, p.triangles, normals=np.broadcast_to([0.0, 0.0, 1.0], p.vertices.shape),
                                  vertex_colours=np.repeat(w[:, None], 3, axis=1), colour=(1.0, 1.0, 1.0)))
-    img = render(meshes, sub, background=(0.0, 0.0, 0.0), samples=0, ambient=1.0)
+    img = render_unlit(meshes, sub, background=(0.0, 0.0, 0.0))
     return img[..., 0].astype(np.float32) / 255.0
 
 

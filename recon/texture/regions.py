@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from mpeg4.catalogue import FEATURE_POINTS
-from mpeg4.depth import render_depth
+from mpeg4.unlit import render_depth
 from mpeg4.errors import InputError
 from mpeg4.head import Head
 from mpeg4.render import Camera

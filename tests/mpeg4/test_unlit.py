@@ -1,9 +1,10 @@
-"""The depth-only renderer returns render's depth image to the bit, whatever the camera."""
+"""The lean renderers return render's depth image, and its unlit image of vertex-coloured
+meshes, to the bit, whatever the camera."""
 
 import numpy as np
 import pytest
 
-from mpeg4.depth import render_depth
+from mpeg4.unlit import render_depth, render_unlit
 from mpeg4.errors import InputError
 from mpeg4.render import Camera, RenderMesh, render
 
@@ -36,3 +37,19 @@ def test_render_depth_refuses_what_render_refuses():
     cam = Camera(40, 30, np.eye(3), [0, 0, 3], focal_px=30.0)
     with pytest.raises(InputError, match="triangle indices"):
         render_depth([RenderMesh(np.zeros((3, 3)), [[0, 1, 5]])], cam)
+
+
+@pytest.mark.parametrize("focal,yaw", [(None, 20.0), (400.0, -150.0)])
+def test_render_unlit_is_renders_unlit_image(focal, yaw):
+    meshes = _sphere_and_plane()
+    rng = np.random.default_rng(0)
+    for m in meshes:
+        m.vertex_colours = rng.random((len(m.vertices), 3))
+    meshes[1].colour = (0.5, 0.8, 1.0)
+    cam = Camera.fit(np.concatenate([m.vertices for m in meshes]), 150, 130, yaw_deg=yaw, margin=0.1, focal_px=focal)
+    for background in ((0.0, 0.0, 0.0), (0.5, 0.5, 0.5)):
+        image, depth = render(meshes, cam, background=background, return_depth=True, samples=0, ambient=1.0)
+        ours, our_depth = render_unlit(meshes, cam, background=background, return_depth=True)
+        np.testing.assert_array_equal(ours, image)
+        np.testing.assert_array_equal(our_depth, depth)
+        np.testing.assert_array_equal(render_unlit(meshes, cam, background=background), image)
