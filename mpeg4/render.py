@@ -298,13 +298,16 @@ def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """
     v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    n = np.zeros_like(v)
+    n = np.zeros((3, len(v)))
     if len(t):
-        fn = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
+        # The cross products component by component on contiguous rows (np.cross's terms).
+        a = v[t[:, 0]]
+        e1, e2 = (v[t[:, 1]] - a).T, (v[t[:, 2]] - a).T
+        fn = (e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0])
         idx = t.ravel()
-        w = np.repeat(fn, 3, axis=0)
         for k in range(3):  # bincount is far faster than np.add.at on large meshes
-            n[:, k] = np.bincount(idx, weights=w[:, k], minlength=len(v))
+            n[k] = np.bincount(idx, weights=np.repeat(fn[k], 3), minlength=len(v))
+    n = n.T
     norm = np.linalg.norm(n, axis=1, keepdims=True)
     return np.where(norm > 0, n / np.where(norm > 0, norm, 1.0), [0.0, 0.0, 1.0])
 
