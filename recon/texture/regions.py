@@ -201,8 +201,8 @@ def line_depth(left: np.ndarray, right: np.ndarray, heights: np.ndarray) -> np.n
 def triangle_regions(vertex_region: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """(M,) int8: the region most of a triangle's corners belong to (ties: the first in
     :data:`REGIONS`, so the front photo wins)."""
-    r = np.asarray(vertex_region)[np.asarray(triangles)]
-    counts = np.stack([(r == k).sum(axis=1) for k in range(HIDDEN + 1)], axis=1)
+    r = np.asarray(vertex_region)[np.asarray(triangles)].T  # (3, M): the corners as rows
+    counts = np.stack([(r[0] == k).astype(np.int8) + (r[1] == k) + (r[2] == k) for k in range(HIDDEN + 1)], axis=1)
     return np.argmax(counts, axis=1).astype(np.int8)
 
 
