@@ -162,7 +162,7 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
         points); ``side`` is None with no side photo.
     size : int
         Texture size in pixels (square).
-    blend : {"opencv", "skimage"}
+    blend : {"opencv", "opencv-detail", "skimage"}
         Implementation of the multiresolution spline (:func:`blend_multiband`).
     levels : int, optional
         Pyramid levels of the blend.
