@@ -211,8 +211,8 @@ class Camera:
         cx, cy = self.principal
         if self.perspective:
             s = self.focal_px / -c[:, 2]
-            return np.c_[cx + c[:, 0] * s, cy - c[:, 1] * s]
-        return np.c_[cx + c[:, 0] * self.scale_px, cy - c[:, 1] * self.scale_px]
+            return np.stack([cx + c[:, 0] * s, cy - c[:, 1] * s], axis=1)
+        return np.stack([cx + c[:, 0] * self.scale_px, cy - c[:, 1] * self.scale_px], axis=1)
 
     def gl_matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """(4, 4) float64 view and projection matrices (row-major) matching :meth:`project`.
@@ -298,13 +298,16 @@ def vertex_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """
     v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)
     t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    n = np.zeros_like(v)
+    n = np.zeros((3, len(v)))
     if len(t):
-        fn = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
+        # The cross products component by component on contiguous rows (np.cross's terms).
+        a = v[t[:, 0]]
+        e1, e2 = (v[t[:, 1]] - a).T, (v[t[:, 2]] - a).T
+        fn = (e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0])
         idx = t.ravel()
-        w = np.repeat(fn, 3, axis=0)
         for k in range(3):  # bincount is far faster than np.add.at on large meshes
-            n[:, k] = np.bincount(idx, weights=w[:, k], minlength=len(v))
+            n[k] = np.bincount(idx, weights=np.repeat(fn[k], 3), minlength=len(v))
+    n = n.T
     norm = np.linalg.norm(n, axis=1, keepdims=True)
     return np.where(norm > 0, n / np.where(norm > 0, norm, 1.0), [0.0, 0.0, 1.0])
 
@@ -357,7 +360,6 @@ void main() {
     f_depth = v_depth;
 }
 """
-
 
 class _GL:
     """The process's EGL context with the shader program compiled once."""
@@ -541,11 +543,17 @@ def render(meshes: Sequence[RenderMesh], camera: Camera, background=(1.0, 1.0, 1
         image = np.frombuffer(image, np.uint8).reshape(h, w, 3)[::-1].copy()
         if not return_depth:
             return image
-        depth = np.frombuffer(single.read(components=1, attachment=1, dtype="f4"), np.float32)
-        depth = depth.reshape(h, w)[::-1].astype(np.float64)
-        z = np.frombuffer(single.read(components=1, attachment=-1, dtype="f4"), np.float32).reshape(h, w)[::-1]
-        depth[z >= 1.0] = np.inf  # untouched by any triangle
-        return image, depth
+        return image, _read_depth(single, 1, w, h)
     finally:
         for r in resources:
             r.release()
+
+
+def _read_depth(fbo, attachment: int, w: int, h: int) -> np.ndarray:
+    """(H, W) float64 depth from a framebuffer's float attachment, inf where its depth
+    buffer was not touched by any triangle; row 0 at the top."""
+    depth = np.frombuffer(fbo.read(components=1, attachment=attachment, dtype="f4"), np.float32)
+    depth = depth.reshape(h, w)[::-1].astype(np.float64)
+    z = np.frombuffer(fbo.read(components=1, attachment=-1, dtype="f4"), np.float32).reshape(h, w)[::-1]
+    depth[z >= 1.0] = np.inf
+    return depth

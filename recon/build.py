@@ -172,8 +172,8 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
         Side of the square skin texture, pixels.
     atlas : bool
         Re-pack the texture into a non-overlapping atlas (:func:`recon.texture.atlas.repack`).
-    blend : {"opencv", "skimage"}
-        Implementation of the multiresolution spline.
+    blend : {"opencv", "opencv-detail", "skimage"}
+        Implementation of the multiresolution spline (:func:`recon.texture.blend.blend_multiband`).
     generic : Head, optional
         The head to deform (the shipped generic head by default).
     keep_lighting : bool

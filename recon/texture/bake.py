@@ -179,31 +179,39 @@ def fill_empty(image: np.ndarray, valid: np.ndarray, levels: int | None = None) 
     img = np.asarray(image)
     squeeze = img.ndim == 2
     f = img.astype(np.float32).reshape(img.shape[0], img.shape[1], -1)
+    nc = f.shape[2]
     if levels is None:
         levels = int(np.ceil(np.log2(max(img.shape[:2])))) + 1
-    w = valid.astype(np.float32)
-    # Push: valid-weighted averages down the pyramid.
-    stack = [(f * w[..., None], w)]
+    # Push: valid-weighted averages down the pyramid, the weight as the last channel (one
+    # resampling per level for both).
+    base = np.empty(f.shape[:2] + (nc + 1,), np.float32)
+    base[..., nc] = valid
+    np.multiply(f, base[..., nc:], out=base[..., :nc])
+    stack = [base]
     for _ in range(levels):
-        cf, cw = stack[-1]
-        if min(cw.shape) <= 1:
+        if min(stack[-1].shape[:2]) <= 1:
             break
-        stack.append((_down(cf), _down(cw)))
-    # Pull: fill each level's gaps from the coarser level's estimate.
-    cf, cw = stack[-1]
-    est = cf / np.maximum(cw, 1e-12)[..., None]
-    # Cells of the coarsest level with no valid pixel under them take the overall mean.
-    est[cw <= 0] = (f[valid]).mean(axis=0)
-    for cf, cw in reversed(stack[:-1]):
-        up = cv2.resize(est, (cw.shape[1], cw.shape[0]), interpolation=cv2.INTER_LINEAR)
-        up = up.reshape(cw.shape + (f.shape[2],))
-        a = np.clip(cw, 0.0, 1.0)[..., None]
-        est = a * (cf / np.maximum(cw, 1e-12)[..., None]) + (1.0 - a) * up
-    out = np.where(valid[..., None], f, est)
+        stack.append(_down(stack[-1]))
+    # Pull: fill each level's gaps from the coarser level's estimate. With the weight c of
+    # a cell and a = min(c, 1), its estimate is a (sum / c) + (1 - a) coarser, that is
+    # sum / max(c, 1) + (1 - a) coarser (the sum is 0 where c is).
+    top = stack[-1]
+    cw = top[..., nc]
+    est = top[..., :nc] / np.maximum(cw, 1e-12)[..., None]
+    # Cells of the coarsest level with no valid pixel under them take the overall mean
+    # (the push keeps the ratio of the sums).
+    total = top.reshape(-1, nc + 1).sum(axis=0, dtype=np.float64)
+    est[cw <= 0] = (total[:nc] / total[nc]).astype(np.float32)
+    for level in reversed(stack[:-1]):
+        cw = level[..., nc:]
+        est = cv2.resize(est, (cw.shape[1], cw.shape[0]), interpolation=cv2.INTER_LINEAR).reshape(cw.shape[:2] + (nc,))
+        est *= 1.0 - np.minimum(cw, 1.0)
+        est += level[..., :nc] / np.maximum(cw, 1.0)
+    est = cv2.copyTo(f, valid.astype(np.uint8), est).reshape(f.shape)  # (numpy's masked copy is far slower)
     if np.issubdtype(img.dtype, np.integer):
         info = np.iinfo(img.dtype)
-        out = np.clip(np.round(out), info.min, info.max)
-    out = out.astype(img.dtype)
+        est = np.clip(np.round(est), info.min, info.max)
+    out = est.astype(img.dtype)
     return out[..., 0] if squeeze else out
 
 
@@ -241,9 +249,11 @@ def dilate_charts(image: np.ndarray, valid: np.ndarray, iterations: int = 8) -> 
 def _down(a: np.ndarray) -> np.ndarray:
     """Sum-preserving 2x downsampling (a box of four), odd sizes padded with zeros."""
     h, w = a.shape[:2]
-    pad = [(0, h % 2), (0, w % 2)] + [(0, 0)] * (a.ndim - 2)
-    a = np.pad(a, pad)
-    return (a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2]) * 0.25
+    if h % 2 or w % 2:
+        a = cv2.copyMakeBorder(a, 0, h % 2, 0, w % 2, cv2.BORDER_CONSTANT, value=0)
+    # OpenCV's area resampling of an exact halving is that box mean.
+    out = cv2.resize(a, ((w + 1) // 2, (h + 1) // 2), interpolation=cv2.INTER_AREA)
+    return out.reshape(out.shape[:2] + a.shape[2:])
 
 
 def bake(source: np.ndarray, source_uv: np.ndarray, target_uv: np.ndarray, triangles_source: np.ndarray,

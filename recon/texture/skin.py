@@ -51,8 +51,8 @@ from .bake import fill_empty
 from .blend import blend_multiband
 from .cameras import FittedCamera
 from .regions import (FOLD, FRONT, HIDDEN, MIRRORED, REGIONS, SEEN, _depth, _folds, _head_meshes, _seen_from_around,
-                      _visible, feature_line, feature_polygon, line_depth, split_by_region, triangle_regions,
-                      vertex_regions)
+                      _seen_in_box, _visible, feature_line, feature_polygon, line_depth, split_by_region,
+                      triangle_regions, vertex_regions)
 from .warp import FeatureLineWarp
 
 __all__ = ["SkinTexture", "photo_background", "texture_skin", "textured_head"]
@@ -113,13 +113,20 @@ def photo_background(photo: np.ndarray, tol: float = 14.0, border: int = 6) -> n
     Busy backgrounds yield little backdrop; then the head's rendered silhouette alone
     bounds what the texture takes from the photo.
     """
-    img = np.asarray(photo, dtype=np.float32)
+    img = np.asarray(photo)
     h, w = img.shape[:2]
     b = max(1, min(border, w // 4))
     edge = np.concatenate([img[:, :b], img[:, -b:]], axis=1)
-    ref = np.median(edge, axis=1)  # (H, 3)
-    d = img - ref[:, None, :]
-    close = np.einsum("ijk,ijk->ij", d, d) < tol * tol
+    ref = np.median(edge, axis=1).astype(np.float32)  # (H, 3)
+    # Channel by channel on contiguous planes (a row's colour broadcast along it): several
+    # times faster than broadcasting over (H, W, 3).
+    dist2 = np.zeros((h, w), np.float32)
+    for k, plane in enumerate(cv2.split(np.ascontiguousarray(img))):
+        d = plane.astype(np.float32)
+        d -= ref[:, k:k + 1]
+        d *= d
+        dist2 += d
+    close = dist2 < tol * tol
     n, labels = cv2.connectedComponents(close.astype(np.uint8), connectivity=4)
     touching = np.zeros(n, bool)  # a look-up per label (np.isin sorts the whole image)
     touching[np.r_[labels[:, 0], labels[:, -1]]] = True
@@ -134,7 +141,7 @@ def _fill_outside(photo: np.ndarray, valid: np.ndarray) -> np.ndarray:
     half = cv2.resize(photo, ((w + 1) // 2, (h + 1) // 2), interpolation=cv2.INTER_AREA)
     vhalf = cv2.resize(valid.astype(np.uint8), ((w + 1) // 2, (h + 1) // 2), interpolation=cv2.INTER_NEAREST) > 0
     filled = cv2.resize(fill_empty(half, vhalf), (w, h), interpolation=cv2.INTER_LINEAR)
-    return np.where(valid[..., None], photo, filled)
+    return cv2.copyTo(photo, valid.astype(np.uint8), filled)  # (numpy's masked copy is far slower)
 
 
 def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | None, front: FittedCamera,
@@ -155,7 +162,7 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
         points); ``side`` is None with no side photo.
     size : int
         Texture size in pixels (square).
-    blend : {"opencv", "skimage"}
+    blend : {"opencv", "opencv-detail", "skimage"}
         Implementation of the multiresolution spline (:func:`blend_multiband`).
     levels : int, optional
         Pyramid levels of the blend.
@@ -204,8 +211,9 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
         from .delight import normal_image
 
         normals = {key: normal_image(head, cams[key].camera) for key in photos}
-    depth = {k: normals[k][1] if k in normals else _depth(meshes, cam.camera) for k, cam in cams.items()}
-    seen = {k: _visible(V, cams[k].camera, depth[k]) for k in cams}
+    depth = {k: normals[k][1] if k in normals else _depth(meshes, cams[k].camera) for k in photos}
+    seen = {k: _visible(V, cams[k].camera, depth[k]) if k in depth else _seen_in_box(V, meshes, cams[k].camera)
+            for k in cams}  # no photo, no image: the depth over the head's box only
     anywhere = seen["front"] | seen["side"] | seen["mirrored"]
     anywhere[~anywhere] = _seen_from_around(head, V[~anywhere])
     times["visibility"] = time.perf_counter() - t0
@@ -289,7 +297,7 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     grid = max(1, size // 256)  # the warps are piecewise affine: a coarse map, linearly refined
     coarse = (int(np.ceil(size / grid)) + 1,) * 2
     G = np.linalg.inv(A) @ np.diag([grid, grid, 1.0])  # coarse grid pixel → composite pixel
-    for photo in () if front_only else (fill["side"], np.ascontiguousarray(fill["side"][:, ::-1])):
+    for photo in () if front_only else (fill["side"], cv2.flip(fill["side"], 1)):
         warp = warps[SEEN] if len(layers) == 1 else warps[MIRRORED]
         cmap = warp.inverse_map(G, coarse)
         # Texel (x, y) sits at (x / grid, y / grid) on the coarse map: an affine resampling
