@@ -67,16 +67,13 @@ def blend_multiband(images, masks, levels: int | None = None, method: str = "ope
     if method in ("opencv", "opencv-detail"):
         blender = cv2.detail_MultiBandBlender(0, n)
         blender.prepare((0, 0, w, h))
-        # Each layer is fed only around its mask. The 5-tap kernels reach less than 2^(k+1)
-        # pixels by level k: the mask's weights and the layer's pyramid under them reach
-        # less than 6 x 2^levels pixels from the mask, so the rest cannot change the result.
-        reach = _REACH << n
+        # Each layer is fed only around its mask (_fed_crop).
         for im, m in zip(images, masks):
             m8 = m.astype(np.uint8)
-            x, y, bw, bh = cv2.boundingRect(m8)
-            if not bw:
+            fed = _fed_crop(m8, n)
+            if fed is None:
                 continue
-            x0, y0, x1, y1 = max(0, x - reach), max(0, y - reach), min(w, x + bw + reach), min(h, y + bh + reach)
+            x0, y0, x1, y1 = fed[1]
             blender.feed(im[y0:y1, x0:x1].astype(np.int16), m8[y0:y1, x0:x1] * 255, (x0, y0))
         out, _ = blender.blend(None, None)
         return np.clip(out, 0, 255).astype(np.uint8)
@@ -84,6 +81,21 @@ def blend_multiband(images, masks, levels: int | None = None, method: str = "ope
         return _blend_skimage(images, masks, n)
     raise InputError(f"unknown blend method {method!r}", where="blend_multiband",
                      fix="use 'opencv', 'opencv-detail' or 'skimage'")
+
+
+def _fed_crop(m8: np.ndarray, n: int):
+    """The box (x, y, width, height) of a layer's (H, W) uint8 mask and the crop (x0, y0,
+    x1, y1) of the layer fed to the blender around it, or None for an empty mask.
+
+    The 5-tap kernels reach less than 2^(k+1) pixels by level k: the mask's weights and the
+    layer's pyramid under them reach less than 6 x 2^levels pixels from the mask, so the
+    rest of the layer cannot change the result."""
+    h, w = m8.shape
+    x, y, bw, bh = cv2.boundingRect(m8)
+    if not bw:
+        return None
+    reach = _REACH << n
+    return (x, y, bw, bh), (max(0, x - reach), max(0, y - reach), min(w, x + bw + reach), min(h, y + bh + reach))
 
 
 def _feed_box(crop: tuple[int, int, int, int], frame: tuple[int, int], n: int) -> tuple[int, int, int, int]:
@@ -132,14 +144,13 @@ def _blend_opencv16(images, masks, n: int) -> np.ndarray:
     acc = [np.zeros((height >> k, width >> k, 3), np.int16) for k in range(n + 1)]
     wsum = [np.zeros((height >> k, width >> k), np.float32) for k in range(n + 1)]
     count = np.zeros((height, width), np.uint8)  # how many masks hold each pixel
-    reach = _REACH << n
     for im, m in zip(images, masks):
         m8 = m.astype(np.uint8)
-        x, y, bw, bh = cv2.boundingRect(m8)
-        if not bw:
+        fed = _fed_crop(m8, n)
+        if fed is None:
             continue
-        cx0, cy0, cx1, cy1 = crop = (max(0, x - reach), max(0, y - reach), min(w, x + bw + reach),
-                                     min(h, y + bh + reach))
+        (x, y, bw, bh), crop = fed
+        cx0, cy0, cx1, cy1 = crop
         tx, ty, bx, by = _feed_box(crop, (height, width), n)
         border = (cy0 - ty, by - cy1, cx0 - tx, bx - cx1)
         g = [cv2.copyMakeBorder(im[cy0:cy1, cx0:cx1], *border, cv2.BORDER_REFLECT)]
