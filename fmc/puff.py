@@ -6,18 +6,19 @@ sculpted ``cheekPuff`` shapes cannot give that: they swell the cheek mostly forw
 weight 1 they move 5.1 by 2.3 mm in x and 10 mm in z) and their largest motion is at the
 lip corner, not the cheek. A combination of shapes that does move 5.1 by 512 × ES
 (33.6 mm) in x had to overdrive the mouth's shapes tenfold (frown, press, lower-lip down)
-and moved the lip corner 83 mm; the leak check let it through because 5.1 belongs to the
-mouth's region, and the separation (:mod:`fmc.separate`) only holds the lip corner along
-the axes its FAPs govern, not in depth. No non-negative combination draws the cheek in,
-so the inward half fell back to a bump of radius 0.3 ES0 (20 mm) carrying 33.6 mm, which
-folds.
+and moved the skin beside the lip corner 83 mm; the leak check let it through because 5.1
+belongs to the mouth's region, and the separation (:mod:`fmc.separate`) only holds the
+lip corner along the axes its FAPs govern, not in depth. No non-negative combination draws
+the cheek in, so the inward half fell back to a bump of radius 0.3 ES0 (20 mm) carrying
+33.6 mm, which folds.
 
 Here the puff is one smooth field along the FAP's own axis: the point's bi-harmonic hat
 among the feature points (:func:`fmc.separate.correction_basis`: 1 at the cheek point, 0
 at every other FAP's point, smooth in between), so the table moves no other FAP's point
 and nothing moves further than the cheek point itself. A field of amplitude ``A`` folds
 the skin where it falls faster than ``1 / A`` along the surface; a smooth hat falls by
-about 1.5 / R at its steepest, so its reach is at least 1.5 A (:data:`REACH_PER_MOTION`).
+about 1.5 / R at its steepest, so its reach is at least 1.5 A (:data:`REACH_PER_MOTION`;
+with the separation's 35 mm alone two triangles beside 5.1 turned over at +512).
 Inwards the lip corner bounds it: the corner's x is held by ``stretch_cornerlip_o``, and
 once the cheek point passes it (about −200 on the generic head) the skin between must
 turn over, whatever the field.
