@@ -34,6 +34,7 @@ from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
 from mpeg4.head import Head, SparseDisplacement
 
 from .lip_contours import MOUTH_LINE_FPS, lip_side, mouth_line, share_lips, smooth_partition
+from .puff import PUFF_FAPS, puff_field
 from .separate import separate_tables
 
 __all__ = ["JAW_PARTS", "JAW_FAPS", "moving_parts", "REGIONS", "ADJACENT", "region_of", "unrelated",
@@ -88,7 +89,7 @@ class FapFit:
     Attributes
     ----------
     fap : int
-    route : {"shapes", "falloff", "transform", "none"}
+    route : {"shapes", "falloff", "puff", "transform", "none"}
     error : float
         Relative error of the feature point's motion at the authoring value (0 = exact).
     leak : float
@@ -281,6 +282,11 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
         unit = fap_unit(n, fapu)
         axis = fap.axis_vector
         signs = (1.0,) if fap.direction == "U" else (-1.0, 1.0)
+        if n in PUFF_FAPS:  # no shape swells the cheek along x (fmc.puff): one smooth hat, both ways
+            disp = puff_field(head, fp_id, value * unit * axis)
+            fat.add(_mesh_table(head, n, {s: {p: d.scaled(s) for p, d in disp.items()} for s in signs}, value, unit))
+            report.append(FapFit(n, "puff"))
+            continue
         k = ids.index(fp_id)
         bad = unrelated(fp_id, ids)
         parts = moving_parts(head, n)

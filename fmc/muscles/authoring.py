@@ -15,6 +15,7 @@ from scipy.optimize import brentq, nnls
 
 from fmc.author import JAW_FAPS, FapFit, _falloff, _special, unrelated
 from fmc.lip_contours import share_lips
+from fmc.puff import PUFF_FAPS, puff_field
 from fmc.separate import separate_tables
 from mpeg4.catalogue import FAPS, FP_IDS
 from mpeg4.errors import InputError
@@ -25,7 +26,8 @@ from .rig import _JAW_PARTS, _LIDS, FapAction, MuscleRig, _rotate
 
 __all__ = ["author_from_muscles", "HIGH_LEVEL_FAPS", "author_high_level_from_muscles"]
 
-# FAPs the model has no muscle for: the local displacement field of fmc.author moves them.
+# FAPs the model has no muscle for: the local displacement field of fmc.author moves them
+# (the cheek puffs the hat of fmc.puff).
 _FALLOFF_FAPS = frozenset({16, 17, 39, 40, 43, 44, 45, 46, 63, 64, 65, 66, 67, 68})
 
 # Head rotation tables: sampled at these values (AU) to follow the neck's faded turn.
@@ -176,7 +178,8 @@ def author_from_muscles(head: Head, value: float = 512.0, tol: float = 0.10, lea
                 err = abs(along - g) / g if n in (3, 14, 15) else float(np.linalg.norm(motion[k] - goal) / g)
                 leak = float(np.linalg.norm(motion[bad], axis=1).max(initial=0) / g)
             if moved is None or err > tol or leak > leak_tol:
-                disp = _falloff(head, fp_id, goal)
+                # The cheek puffs: the smooth hat of fmc.puff (a falloff bump this large folds).
+                disp = puff_field(head, fp_id, goal) if n in PUFF_FAPS else _falloff(head, fp_id, goal)
                 moved = {p: neutral[p] + d.dense(head.parts[p].n_vertices) for p, d in disp.items()}
                 motion = _fp_motion(head, moved, neutral, ids)
                 err = float(np.linalg.norm(motion[k] - goal) / g)
