@@ -12,15 +12,19 @@ texture (``keep_lighting=True``, the *lit* texture) and with each photo's light 
   (``recon.evaluate.fidelity.reprojection``); then with the side photo's fitted camera against the
   side photo, over all the skin it sees and over the skin the texture takes from the side
   photo, with the mean colour difference (render minus photo, grey levels) over the cheek
-  in front of the ear, which the texture takes from the front photo
+  in front of the ear (``recon.evaluate.fidelity.cheek_vertices``: skin facing the side
+  camera within 45°, between the eyes' and the jaw's heights) and the streak figure there:
+  the render's mean squared horizontal and vertical gradients, each against the photo's
+  own (``cheek_gradient_x_ratio``, ``_y_ratio``), and ``cheek_streaks``, the second over
+  the first: 1 when the texture keeps the photo's grain, above 1 for horizontal streaks
   (``recon.evaluate.fidelity.side_reprojection``). The albedo texture is compared the same way but
   rendered *relit with the photo's light* (``recon.evaluate.synthetic.PHOTO_LIGHT``, ambient
   ``PHOTO_AMBIENT``; ``albedo_*`` lines): rendered unlit it could not match a lit photo.
   The de-lighting itself never sees that light.
 * Albedo error. Both textures against the painted colour at every skin vertex
   (``recon.evaluate.synthetic.skin_albedo``, skin-tone vertices only: no hair, brows, lips, lashes):
-  mean absolute colour error per region (``face``: all; ``front``; ``cheek``: front-region
-  skin facing the side camera, in front of the ear; ``side``: the side photo's layer), the
+  mean absolute colour error per region (``face``: all; ``front``: the front photo's region
+  but the cheek; ``cheek``: as above; ``side``: the side photo's layer), the
   cheek's brightness step against the front, and the error of the face's left-right
   difference (``recon.evaluate.fidelity.albedo_error``).
 * Seams: each texture's layers blended three ways, mean gradient magnitude in an 8-pixel
@@ -79,6 +83,10 @@ def _print_case(prefix, m):
         print(f"{p}side_ssim: {side.ssim:.4f}")
         print(f"{p}side_layer_psnr: {side.side_layer_psnr_db:.2f} dB")
         print(f"{p}cheek_grey_difference: {side.cheek_grey:.1f} grey")
+        gx, gy = side.cheek_gradient
+        print(f"{p}cheek_gradient_x_ratio: {gx:.3f}")
+        print(f"{p}cheek_gradient_y_ratio: {gy:.3f}")
+        print(f"{p}cheek_streaks: {side.cheek_streaks:.3f}")
     for kind in ("lit", "albedo"):
         a = m[kind].get("albedo")
         if a is None:
@@ -126,9 +134,11 @@ def main(argv=None) -> int:
                      alb["front"].psnr_db, alb["side"].psnr_db, alb["side"].side_layer_psnr_db, alb["side"].cheek_grey,
                      la.mae["face"], la.mae["cheek"], la.cheek_minus_front, la.left_right,
                      aa.mae["face"], aa.mae["cheek"], aa.cheek_minus_front, aa.left_right, alb["delight_s"],
-                     m["albedo_seams"]["multiband"], m["albedo_seams"]["feather"], m["albedo_seams"]["hard"]))
+                     m["albedo_seams"]["multiband"], m["albedo_seams"]["feather"], m["albedo_seams"]["hard"],
+                     side.cheek_streaks, alb["side"].cheek_streaks))
         print(f"identity_{seed}: lit psnr {fid.psnr_db:.2f} dB, ssim {fid.ssim:.4f}; side psnr {side.psnr_db:.2f} dB, "
-              f"side layer {side.side_layer_psnr_db:.2f} dB, cheek {side.cheek_grey:+.1f} grey; albedo relit psnr "
+              f"side layer {side.side_layer_psnr_db:.2f} dB, cheek {side.cheek_grey:+.1f} grey, streaks "
+              f"{side.cheek_streaks:.2f}; albedo relit psnr "
               f"{alb['front'].psnr_db:.2f} dB, side {alb['side'].psnr_db:.2f} dB, cheek {alb['side'].cheek_grey:+.1f} "
               f"grey; albedo error face/cheek lit {la.mae['face']:.1f}/{la.mae['cheek']:.1f}, de-lit "
               f"{aa.mae['face']:.1f}/{aa.mae['cheek']:.1f} grey; seam gradient multiband "
@@ -141,10 +151,10 @@ def main(argv=None) -> int:
              "lit_texture_cheek_minus_front", "lit_texture_left_right_error", "albedo_texture_albedo_mae_face",
              "albedo_texture_albedo_mae_cheek", "albedo_texture_cheek_minus_front",
              "albedo_texture_left_right_error", "delight_time", "albedo_seam_multiband", "albedo_seam_feather",
-             "albedo_seam_hard")
+             "albedo_seam_hard", "cheek_streaks", "albedo_cheek_streaks")
     units = ("dB", "", "grey/px", "grey/px", "grey/px", "dB", "", "dB", "grey", "dB", "dB", "dB", "grey",
-             "grey", "grey", "grey", "grey", "grey", "grey", "grey", "grey", "s", "grey/px", "grey/px", "grey/px")
-    worst_max = {2, 3, 4, 13, 14, 16, 17, 18, 20, 21, 22, 23, 24}
+             "grey", "grey", "grey", "grey", "grey", "grey", "grey", "grey", "s", "grey/px", "grey/px", "grey/px", "", "")
+    worst_max = {2, 3, 4, 13, 14, 16, 17, 18, 20, 21, 22, 23, 24, 25, 26}
     for j, (n, u) in enumerate(zip(names, units)):
         print(f"{n}_median: {np.median(a[:, j]):.4f} {u}".rstrip())
         worst = "max" if j in worst_max else "min"  # signed differences: the min is the darkest
@@ -152,7 +162,8 @@ def main(argv=None) -> int:
     ordered = int(np.sum((a[:, 2] < a[:, 3]) & (a[:, 2] < a[:, 4])))
     ordered_albedo = int(np.sum((a[:, 22] < a[:, 23]) & (a[:, 22] < a[:, 24])))
     print(f"summary: {len(a)} identities; lit texture (unlit render) re-projection PSNR median "
-          f"{np.median(a[:, 0]):.1f} dB, side {np.median(a[:, 5]):.1f} dB, cheek {np.median(a[:, 8]):+.1f} grey; "
+          f"{np.median(a[:, 0]):.1f} dB, side {np.median(a[:, 5]):.1f} dB, cheek {np.median(a[:, 8]):+.1f} grey, "
+          f"streaks {np.median(a[:, 25]):.2f}; "
           f"albedo texture relit with the photo's light PSNR {np.median(a[:, 9]):.1f} dB, side "
           f"{np.median(a[:, 10]):.1f} dB, cheek {np.median(a[:, 12]):+.1f} grey; albedo error (face/cheek) lit "
           f"{np.median(a[:, 13]):.1f}/{np.median(a[:, 14]):.1f}, de-lit {np.median(a[:, 17]):.1f}/"

@@ -24,7 +24,8 @@ from mpeg4.errors import InputError
 from mpeg4.head import Head
 from recon.texture.cameras import FittedCamera
 
-__all__ = ["Fidelity", "SideFidelity", "AlbedoError", "albedo_error", "face_mask", "reprojection", "side_reprojection", "seam_smoothness"]
+__all__ = ["Fidelity", "SideFidelity", "AlbedoError", "albedo_error", "cheek_vertices", "face_mask", "reprojection",
+           "side_reprojection", "seam_smoothness"]
 
 
 @dataclass
@@ -164,9 +165,14 @@ class SideFidelity:
     side_layer_psnr_db : float
         Over the skin the texture takes from the side photo (its seen-side layer).
     cheek_rgb : (3,) float
-        Mean colour of the render minus the photo (grey levels, RGB) over the cheek: the
-        skin the texture takes from the front photo that faces the side camera within 45°.
+        Mean colour of the render minus the photo (grey levels, RGB) over the cheek
+        (:func:`cheek_vertices`), whichever photo the texture takes it from.
     cheek_pixels : int
+    cheek_gradient : (2,) float
+        Mean squared horizontal and vertical intensity gradients (Sobel, grey levels²) of the
+        render over the cheek, each divided by the photo's own there. Skin the front photo
+        sees edge-on smears into horizontal streaks: the vertical gradient above the photo's,
+        the horizontal one below it.
     """
 
     psnr_db: float
@@ -175,17 +181,53 @@ class SideFidelity:
     side_layer_psnr_db: float
     cheek_rgb: np.ndarray
     cheek_pixels: int
+    cheek_gradient: np.ndarray
 
     @property
     def cheek_grey(self) -> float:
         """The cheek's mean difference in grey levels (Rec. 601 luma of ``cheek_rgb``)."""
         return float(np.dot(self.cheek_rgb, (0.299, 0.587, 0.114)))
 
+    @property
+    def cheek_streaks(self) -> float:
+        """How much more the render's cheek varies along the vertical than along the
+        horizontal than the photo's does: ``cheek_gradient[1] / cheek_gradient[0]``; 1 when
+        the texture keeps the photo's texture, above 1 for horizontal streaks."""
+        return float(self.cheek_gradient[1] / self.cheek_gradient[0])
+
+
+def cheek_vertices(head: Head, side: FittedCamera, facing_deg: float = 45.0) -> np.ndarray:
+    """(N,) bool over the head's skin vertices: the cheek and jaw in front of the ear, which
+    the front photo sees at a grazing angle.
+
+    Skin ahead of the feature lines down the front of the ears
+    (:func:`recon.texture.regions.feature_line`), outside the outer eye corners (3.7, 3.12:
+    not the side of the nose), between their height and that of the jaw's angles (2.13,
+    2.14), whose normal is within ``facing_deg`` of the direction to the side camera
+    (either side of the face). Defined by the head's shape alone, so that textures laid out
+    differently are compared over the same skin.
+    """
+    from recon.texture.regions import feature_line, line_depth
+
+    part = head.parts["skin"]
+    pts = head.fp_positions()
+    v = part.vertices
+    missing = [k for k in ("3.7", "3.12", "2.13", "2.14") if k not in pts]
+    if missing:
+        raise InputError(f"the head has no feature point {', '.join(missing)}", where="cheek_vertices",
+                         fix="give a head with the eye corners and the jaw's angles marked")
+    lines = [feature_line(pts, v, part.triangles, k)[0] for k in ("L", "R")]
+    ahead = v[:, 2] >= line_depth(lines[0], lines[1], v[:, 1])
+    top = 0.5 * (pts["3.7"][1] + pts["3.12"][1])
+    bottom = 0.5 * (pts["2.13"][1] + pts["2.14"][1])
+    outside = np.abs(v[:, 0]) > 0.5 * (abs(pts["3.7"][0]) + abs(pts["3.12"][0]))
+    return ahead & outside & (v[:, 1] < top) & (v[:, 1] > bottom) & _facing(part, side, facing_deg)
+
 
 def side_reprojection(head: Head, skin, photo: np.ndarray, side: FittedCamera, photo_mask: np.ndarray | None = None,
                       shrink: int = 4, facing_deg: float = 45.0, light: tuple | None = None) -> SideFidelity:
     """Render ``head`` with the side camera and compare it with the side photo over the
-    skin the photo sees, and over the cheek in front of the ear.
+    skin the photo sees, and over the cheek in front of the ear (:func:`cheek_vertices`).
 
     Parameters
     ----------
@@ -201,12 +243,11 @@ def side_reprojection(head: Head, skin, photo: np.ndarray, side: FittedCamera, p
     shrink : int
         Pixels taken off the regions' rims.
     facing_deg : float
-        The cheek is front-region skin whose normal is within this angle of the direction
-        to the side camera.
+        The cheek's skin faces the side camera within this angle.
     light : (direction, ambient), optional
         Render lit so, as :func:`reprojection`.
     """
-    from recon.texture import FRONT, SEEN
+    from recon.texture import SEEN
 
     part = head.parts["skin"]
     if len(part.vertices) != len(skin.vertex_region):
@@ -221,19 +262,26 @@ def side_reprojection(head: Head, skin, photo: np.ndarray, side: FittedCamera, p
         image = matched_gain(image, photo, region)
     psnr, ssim = _compare(image, photo, region)
     # The cheek and the side layer: rendered as white patches on black, shrunk off their rims.
-    facing = _facing(part, side, facing_deg)
     patches = {}
-    for name, sel in (("cheek", (skin.vertex_region == FRONT) & facing), ("side", skin.vertex_region == SEEN)):
+    for name, sel in (("cheek", cheek_vertices(head, side, facing_deg)), ("side", skin.vertex_region == SEEN)):
         image_sel, _ = _render_skin(head, side, np.repeat(sel.astype(np.float64)[:, None], 3, axis=1))
         k = np.ones((2 * shrink + 1,) * 2, np.uint8)
         patches[name] = (cv2.erode((image_sel[..., 0] > 250).astype(np.uint8), k) > 0) & region
     cheek_px = patches["cheek"]
     if cheek_px.any():
         d = (image[cheek_px].astype(np.float64) - photo[cheek_px].astype(np.float64)).mean(axis=0)
+        gradient = _gradient_energy(image, cheek_px) / _gradient_energy(photo, cheek_px)
     else:
-        d = np.full(3, np.nan)
+        d, gradient = np.full(3, np.nan), np.full(2, np.nan)
     side_psnr = _compare(image, photo, patches["side"])[0] if patches["side"].any() else float("nan")
-    return SideFidelity(psnr, ssim, int(region.sum()), side_psnr, d, int(cheek_px.sum()))
+    return SideFidelity(psnr, ssim, int(region.sum()), side_psnr, d, int(cheek_px.sum()), gradient)
+
+
+def _gradient_energy(image: np.ndarray, region: np.ndarray) -> np.ndarray:
+    """(2,) mean squared horizontal and vertical Sobel gradients of the image's grey levels
+    over the region (grey levels² per pixel²)."""
+    g = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    return np.array([float(np.mean(cv2.Sobel(g, cv2.CV_32F, dx, 1 - dx, ksize=3)[region] ** 2)) for dx in (1, 0)])
 
 
 def _facing(part, cam: FittedCamera, facing_deg: float) -> np.ndarray:
@@ -257,8 +305,8 @@ class AlbedoError:
     ----------
     mae : dict of str to float
         Mean absolute colour error (grey levels, mean over RGB) per region: ``face`` (all
-        the skin compared), ``front`` (the front region but the cheek), ``cheek`` (front
-        region facing the side camera within 45°: in front of the ear), ``side`` (the
+        the skin compared), ``front`` (the front region but the cheek), ``cheek``
+        (:func:`cheek_vertices`, whichever photo the texture takes it from), ``side`` (the
         seen side's layer), ``mirrored``.
     bias : dict of str to float
         Mean luma of texture minus truth per region (negative: darker than the albedo).
@@ -292,7 +340,7 @@ def albedo_error(head: Head, skin, truth: np.ndarray, side: FittedCamera, blur_p
     truth : (N, 3) float
         True albedo (RGB, 0–255) per original skin vertex (:func:`recon.evaluate.synthetic.skin_albedo`).
     side : FittedCamera
-        The side photo's camera (for the cheek: see :func:`side_reprojection`).
+        The side photo's camera (for the cheek: see :func:`cheek_vertices`).
     blur_px : float, optional
         Gaussian blur of the texture before sampling, texels (size / 512 by default: the
         truth's blur at the scale of the face).
@@ -324,10 +372,11 @@ def albedo_error(head: Head, skin, truth: np.ndarray, side: FittedCamera, blur_p
     ok = np.all(np.isfinite(want), axis=1)
     if skin_tone is not None:
         ok &= np.linalg.norm(want - np.asarray(skin_tone, float), axis=1) < tone_tol
-    facing = _facing(part, side, 45.0)
+    cheek = cheek_vertices(head, side)
     r = skin.vertex_region
-    regions = {"face": ok & np.isin(r, (FRONT, SEEN, MIRRORED)), "front": ok & (r == FRONT) & ~facing,
-               "cheek": ok & (r == FRONT) & facing, "side": ok & (r == SEEN), "mirrored": ok & (r == MIRRORED)}
+    face = ok & np.isin(r, (FRONT, SEEN, MIRRORED))
+    regions = {"face": face, "front": ok & (r == FRONT) & ~cheek, "cheek": face & cheek, "side": ok & (r == SEEN),
+               "mirrored": ok & (r == MIRRORED)}
     luma = np.array([0.299, 0.587, 0.114])
     if albedo_gain and regions["face"].any():
         a, b = got[regions["face"]] @ luma, want[regions["face"]] @ luma
@@ -338,7 +387,7 @@ def albedo_error(head: Head, skin, truth: np.ndarray, side: FittedCamera, blur_p
     bias = {k: float((d[m] @ luma).mean()) if m.any() else float("nan") for k, m in regions.items()}
     # Left-right: front-region originals paired with the vertex nearest their mirror image.
     n0 = len(truth)
-    orig = np.flatnonzero(regions["front"][:n0] | regions["cheek"][:n0])
+    orig = np.flatnonzero((ok & (r == FRONT))[:n0])
     v = part.vertices[orig]
     left = orig[v[:, 0] > 0.005]
     right = orig[v[:, 0] < -0.005]

@@ -2,7 +2,9 @@
 
 The side photo's **feature line** (the feature points from the top of the skull down to the
 chin, :data:`~recon.texture.warp.FEATURE_LINE`) is laid on the head's skin for each side
-(:func:`feature_line`); with the front camera it bounds the front photo's polygon
+(:func:`feature_line`). With both photos at hand the front photo's region ends further
+forward below the brow, where the two photos see the skin equally squarely
+(:func:`view_line`); with the front camera that line bounds the front photo's polygon
 (:func:`feature_polygon`). Each skin vertex then takes a region (:data:`REGIONS`): the front
 photo inside that polygon where the front camera sees it, the seen or the mirrored side
 photo elsewhere by the side of the midline it lies on, hidden inside the mouth and eye
@@ -28,7 +30,8 @@ from mpeg4.render import Camera
 from .cameras import FittedCamera
 from .warp import FEATURE_LINE, convex_outline, sections
 
-__all__ = ["REGIONS", "FRONT", "SEEN", "MIRRORED", "HIDDEN", "FOLD", "line_ids", "feature_line", "feature_polygon",
+__all__ = ["REGIONS", "FRONT", "SEEN", "MIRRORED", "HIDDEN", "FOLD", "line_ids", "feature_line", "view_line",
+           "feature_polygon",
            "vertex_regions", "line_depth", "triangle_regions", "split_by_region"]
 
 _NECK_STEP = 0.01  # metres between the neck line's points
@@ -88,6 +91,74 @@ def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, 
         neck.append([hull[k, 0], y, hull[k, 1]])
     points = np.vstack([fps, np.array(neck).reshape(-1, 3)])
     return points, np.r_[np.ones(len(fps), bool), np.zeros(len(neck), bool)]
+
+
+def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, skin_triangles: np.ndarray,
+              side: str, toward_front: np.ndarray, toward_side: np.ndarray,
+              step: float = _NECK_STEP) -> tuple[np.ndarray, np.ndarray]:
+    """The line along which the front and the side photo see one side of the head alike,
+    top to bottom: where the front region ends when both photos are at hand.
+
+    The feature line (:func:`feature_line`) runs down the front of the ear: the cheek before
+    it faces the side camera, and the front photo sees it edge-on, its skin squeezed into a
+    few pixels (the texture's horizontal streaks there). This line keeps the feature line's
+    points above the outer end of the brow (the top of the skull, the hairline's end, the
+    brow's end: exact in both photos). Below the brow's end, every ``step`` metres down to
+    the feature line's end, it splits the band of skin ahead of the feature line at that
+    height, ordered outwards, where the least skin area goes to the photo that sees it
+    worse: a vertex is better seen from the front when its normal faces the front camera
+    at least as squarely as the side camera (``n . toward_front >= n . toward_side``).
+    One split per band, weighed by area, so that the side of the nose or a hollow at the
+    temple moves it only by their own area instead of cutting the face there.
+
+    Parameters
+    ----------
+    points3d, skin_vertices, skin_triangles, side
+        As :func:`feature_line`.
+    toward_front, toward_side : (3,) float
+        Unit directions from the head towards the front camera and towards the side camera
+        on this side of the face (the side photo's, or its mirror image).
+    step : float
+        Metres between the line's points below the brow.
+
+    Returns
+    -------
+    points : (K, 3) float64
+        Metres.
+    is_fp : (K,) bool
+        Which of them are feature points.
+    """
+    from mpeg4.render import vertex_normals
+
+    ear, ear_fp = feature_line(points3d, skin_vertices, skin_triangles, side)
+    top = 3  # the skull's top, the hairline's end and the brow's end
+    sign = 1.0 if side == "L" else -1.0
+    v = np.asarray(skin_vertices, float)
+    n = vertex_normals(v, np.asarray(skin_triangles))
+    order = np.argsort(ear[:, 1])
+    z_ear = np.interp(v[:, 1], ear[order, 1], ear[order, 2])
+    better = n @ np.asarray(toward_front, float) - n @ np.asarray(toward_side, float) >= 0
+    area = np.zeros(len(v))  # each vertex's share of the skin's area
+    t = np.asarray(skin_triangles)
+    np.add.at(area, t.ravel(), np.repeat(0.5 / 3 * np.linalg.norm(np.cross(v[t[:, 1]] - v[t[:, 0]],
+                                                                            v[t[:, 2]] - v[t[:, 0]]), axis=1), 3))
+    ahead = np.flatnonzero((v[:, 0] * sign > 0) & (v[:, 2] >= z_ear))
+    heights = np.arange(ear[top - 1, 1] - step, ear[-1, 1] - 0.5 * step, -step)
+    line = []
+    for y in heights:
+        k = ahead[np.abs(v[ahead, 1] - y) <= 0.5 * step]
+        if len(k) < 2:
+            continue
+        k = k[np.argsort(v[k, 0] * sign, kind="stable")]
+        w, good = area[k], better[k]
+        # Split the band where the least skin area is left with the photo that sees it worse:
+        # vertices 0..j front, the rest side (a hollow at the temple or the side of the
+        # nose only moves the split by its own area).
+        cost = np.cumsum(w * ~good) + (np.sum(w * good) - np.cumsum(w * good))
+        j = int(np.argmin(cost))
+        line.append([v[k[j], 0], y, v[k[j], 2]])
+    points = np.vstack([ear[:top], np.array(line).reshape(-1, 3)])
+    return points, np.r_[ear_fp[:top], np.zeros(len(line), bool)]
 
 
 def feature_polygon(front: FittedCamera, left: np.ndarray, right: np.ndarray) -> np.ndarray:

@@ -15,8 +15,12 @@ Texture generation and fitting after Lee and Magnenat-Thalmann (sections 2.2.1�
    pyramid of its mask and the result collapsed, so that the seams along the feature
    lines vanish at every scale instead of showing as an edge or a ghost.
 4. Every skin vertex is projected onto the front, seen-side or mirrored-side plane,
-   chosen by the same feature lines (inside the front polygon and seen by the front
-   camera: front; elsewhere by the side of the midline it lies on), carried into the
+   chosen by the **view lines** (:func:`~recon.texture.regions.view_line`: the feature
+   line above the brow's end, below it the line where the two photos see the skin
+   equally squarely, so that the cheek the front photo sees edge-on comes from the side
+   photo; the feature lines themselves with a front photo alone) — inside the polygon
+   they bound and seen by the front camera: front; elsewhere by the side of the midline
+   it lies on — carried into the
    composite frame by the same warp and made a texture coordinate
    (:func:`texture_skin`). Triangles take the region of most of their corners; vertices
    shared by triangles of different regions are duplicated, so that each corner samples its
@@ -50,9 +54,10 @@ from mpeg4.head import Head
 from .bake import fill_empty
 from .blend import blend_multiband
 from .cameras import FittedCamera
+from .exposure import apply_gain, side_gain
 from .regions import (FOLD, FRONT, HIDDEN, MIRRORED, REGIONS, SEEN, _depth, _folds, _head_meshes, _seen_from_around,
                       _seen_in_box, _visible, feature_line, feature_polygon, line_depth, split_by_region,
-                      triangle_regions, vertex_regions)
+                      triangle_regions, vertex_regions, view_line)
 from .warp import FeatureLineWarp
 
 __all__ = ["SkinTexture", "photo_background", "texture_skin", "textured_head"]
@@ -87,6 +92,10 @@ class SkinTexture:
     lighting : dict of str to recon.texture.delight.Lighting
         The lighting fitted to the ``front`` and ``side`` photos and taken out of them
         (empty when the texture keeps the photos' light).
+    side_gain : (3,) float
+        The per-channel gains the de-lit side photo was scaled by to match the front
+        photo's skin (:mod:`recon.texture.exposure`; ones with a front photo alone, when
+        the texture keeps the photos' light or a photo could not be de-lit).
     """
 
     texture: np.ndarray
@@ -101,6 +110,7 @@ class SkinTexture:
     timings: dict[str, float] = field(default_factory=dict)
     seen_sign: float = 1.0
     lighting: dict = field(repr=False, default_factory=dict)
+    side_gain: np.ndarray = field(default_factory=lambda: np.ones(3))
 
 
 def photo_background(photo: np.ndarray, tol: float = 14.0, border: int = 6) -> np.ndarray:
@@ -219,7 +229,10 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     times["visibility"] = time.perf_counter() - t0
 
     t1 = time.perf_counter()
-    lines = {k: feature_line(pts, V, skin.triangles, k) for k in ("L", "R")}
+    if front_only:  # the front photo gives all it can, up to the ears
+        lines = {k: feature_line(pts, V, skin.triangles, k) for k in ("L", "R")}
+    else:
+        lines = {k: view_line(pts, V, skin.triangles, k, *d) for k, d in _towards(V, front, side).items()}
     polygon = feature_polygon(front, lines["L"][0], lines["R"][0])
     front_px = front.project(V)
     depth_of_line = line_depth(lines["L"][0], lines["R"][0], V[:, 1])
@@ -289,6 +302,14 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
                 say(f"warning: the {key} photo keeps its light: {lighting[key].fallback}")
         times["delight"] = time.perf_counter() - t
 
+    gain = np.ones(3)
+    # One skin tone on both sides of the seam. Between de-lit photos what differs is their
+    # exposure and white balance; between lit ones, also their light, which a lit texture
+    # keeps as each photo took it.
+    if not front_only and lighting and not any(light.fallback for light in lighting.values()):
+        gain = _side_gain(head, photos, seen, front, side, seen_sign)
+        photos["side"] = apply_gain(photos["side"], gain)
+
     say(f"warping the photos into a {size}x{size} texture")
     t2 = time.perf_counter()
     fill = {key: _fill_outside(photos[key], head_masks[key]) for key in photos}
@@ -318,7 +339,44 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     texture[size - patch:, :patch] = _HIDDEN_RGB
     times["blend"] = time.perf_counter() - t3
     times["total"] = time.perf_counter() - t0
-    return SkinTexture(texture, uv, source, tris, tregion, region, cams, layers, masks, times, seen_sign, lighting)
+    return SkinTexture(texture, uv, source, tris, tregion, region, cams, layers, masks, times, seen_sign, lighting,
+                       gain)
+
+
+def _side_gain(head: Head, photos: dict, seen: dict, front: FittedCamera, side: FittedCamera,
+               seen_sign: float) -> np.ndarray:
+    """(3,) gains for the side photo (:func:`recon.texture.exposure.side_gain`) from the skin
+    on its side of the face that both cameras see within 60° of its normal and about
+    equally squarely: along the seam, where a light that stands by each camera (a flash,
+    a lamp behind the photographer) also falls alike, so the gain is the photos' exposure
+    and not their shading."""
+    from mpeg4.render import vertex_normals
+
+    from .delight import fit_mask
+
+    V = head.skin.vertices
+    toward_front, toward_side = _towards(V, front, side)["L" if seen_sign > 0 else "R"]
+    n = vertex_normals(V, head.skin.triangles)
+    square = np.cos(np.radians(60.0))
+    usable = ((fit_mask(head) > 0) & seen["front"] & seen["side"] & (V[:, 0] * seen_sign > 0)
+              & (n @ toward_front >= square) & (n @ toward_side >= square)
+              & (np.abs(n @ toward_front - n @ toward_side) <= 0.2))
+    return side_gain(photos["front"], photos["side"], front.project(V), side.project(V), usable)
+
+
+def _towards(vertices: np.ndarray, front: FittedCamera, side: FittedCamera) -> dict[str, tuple]:
+    """For each side of the face (``"L"``: x > 0), the unit directions from the head towards
+    the front camera and towards the side camera on that side (the side photo's, or its
+    mirror image for the other side)."""
+    centre = vertices.mean(axis=0)
+
+    def toward(cam):
+        c = cam.camera
+        d = (c.centre - centre) if c.perspective else np.asarray(c.rotation[2], float)
+        return d / np.linalg.norm(d)
+
+    f, s = toward(front), toward(side)
+    return {key: (f, s if s[0] * sign > 0 else s * (-1.0, 1.0, 1.0)) for key, sign in (("L", 1.0), ("R", -1.0))}
 
 
 def _skin_model_layers(front_layer, masks, photo, head_mask, front: FittedCamera, pts, A) -> list[np.ndarray]:

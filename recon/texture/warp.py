@@ -48,9 +48,11 @@ class FeatureLineWarp:
     skull. A row follows the head's horizontal outline at its height (the convex hull of
     the skin's cross-section) backwards and forwards from the line: each of its points is
     placed in the side photo where the side camera sees that point of the outline, and in
-    the composite frame where the front camera sees it — up to the outline's silhouette in
-    the front view; behind it the outline unrolls outwards at the front photo's scale, so
-    that the back of the head spreads beside the face. Beyond the outline's ends (the back
+    the composite frame where the front camera sees the row's anchor; from there the
+    outline unrolls outwards at the front photo's scale, so that the cheek behind the
+    line and the back of the head spread beside the face instead of being squeezed into
+    the few pixels the front photo gives skin it sees edge-on. (Rows below the line,
+    anchored on the front midline, follow the front view out to the outline's silhouette.) Beyond the outline's ends (the back
     and front midlines) and on rows with no outline (above the skull), rows continue
     straight along the head's depth (side photo) and width (front photo). Every row keeps
     its anchor's height in each photo, and consecutive rows are joined by two triangles per
@@ -204,7 +206,11 @@ class FeatureLineWarp:
         span = np.concatenate([-fine[ahead][::-1], fine[behind]])
         span_x = np.concatenate([fwd_pts[ahead][::-1, 0], back_pts[behind, 0]])
         widest = span[int(np.argmax(sig * span_x))]
-        s_sil = max(widest, 0.0)
+        # Behind a feature-line anchor the outline unrolls from the anchor itself: between
+        # it and the silhouette the front photo's own frame would squeeze the skin into a
+        # few pixels. The rows below the line (anchored on the front midline) keep the
+        # front frame out to the silhouette.
+        s_sil = max(widest, 0.0) if midline else 0.0
         y = float(x[1])
         # The row's points at the arc offsets (clamped to the outline's ends), the silhouette
         # point and the anchor, with the anchor's steps for :meth:`_directions`: one

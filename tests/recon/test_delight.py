@@ -73,14 +73,16 @@ def test_the_albedo_texture_gives_back_the_paint_where_the_lit_one_is_dark(ict_n
         err[keep] = albedo_error(r.head, r.skin, truth, r.cameras["side"], skin_tone=person.skin_rgb, albedo_gain=not keep)
         assert r.head.metadata["build"]["texture_lighting"] == ("photo" if keep else "albedo")
     lit, alb = err[True], err[False]
-    # At 1024²: the cheek in front of the ear, which the front photo sees at a grazing angle
-    # and the light moving with the camera barely reaches, is off the paint by 49 grey levels
-    # in the lit texture (51 darker), by 8 in the albedo one; the face as a whole 37 vs 8.5;
-    # the cheek's step in brightness against the front of the face -17 vs -4; the error of
-    # the face's left-right difference (the key light comes from the left) 26 vs 6.
-    assert lit.vertices["cheek"] > 1000 and lit.vertices["face"] > 6000
-    assert alb.mae["cheek"] < 14.0 and lit.mae["cheek"] > 30.0, (alb.mae, lit.mae)
-    assert alb.mae["face"] < 14.0 and lit.mae["face"] > 25.0, (alb.mae, lit.mae)
+    # At 1024²: the face as a whole is off the paint by 32 grey levels in the lit texture
+    # (33 darker: the light moving with the cameras comes from the left), by 8 in the albedo
+    # one; the error of the face's left-right difference 24 vs 5. The cheek in front of the
+    # ear comes from the side photo, which faces it: 17 off in the lit texture, 4 de-lit (when
+    # the texture took it from the front photo, which sees it at a grazing angle: 49 and 8),
+    # its step in brightness against the front of the face +17 lit (the side photo's light
+    # falls on it squarely), +3 de-lit.
+    assert lit.vertices["cheek"] > 400 and lit.vertices["face"] > 6000
+    assert alb.mae["cheek"] < 8.0 and lit.mae["cheek"] > 12.0, (alb.mae, lit.mae)
+    assert alb.mae["face"] < 12.0 and lit.mae["face"] > 25.0, (alb.mae, lit.mae)
     assert abs(alb.cheek_minus_front) < 8.0 and abs(lit.cheek_minus_front) > 12.0, (alb.bias, lit.bias)
     assert alb.left_right < 11.0 and lit.left_right > 18.0, (alb.left_right, lit.left_right)
 

@@ -143,11 +143,15 @@ def test_side_reprojection_gives_the_side_layer_back_and_weighs_the_cheek(exampl
     head_region = ~photo_background(pair.side)
     fid = side_reprojection(result.head, result.skin, pair.side, side, head_region, light=PHOTO)
     # The skin the texture takes from the side photo comes back, relit with the photo's
-    # light, like the front region in the front photo: 31.4 dB on the example at 1024². The cheek in front of the ear, which the texture takes from the front
-    # photo, seen there at a grazing angle, was 62 grey levels darker than the side photo in
-    # the lit texture; de-lit and relit it is within a few (benchmarks/texture_fidelity.py;
-    # tests/recon/test_delight.py holds it against the paint).
-    assert fid.side_layer_psnr_db > 26.0 and fid.pixels > 200_000 and fid.cheek_pixels > 20_000, fid
+    # light, like the front region in the front photo: 34.9 dB on the example at 1024².
+    assert fid.side_layer_psnr_db > 30.0 and fid.pixels > 200_000 and fid.cheek_pixels > 15_000, fid
+    # The cheek in front of the ear: the texture takes it from the side photo, which faces it,
+    # and keeps the photo's grain. Taken from the front photo, which sees it at a grazing
+    # angle, it was smeared into horizontal streaks: relative to the photo's own, the
+    # render's vertical gradients 1.3 times its horizontal ones at 2048² (1.6 in the lit
+    # texture, up to 16 on other identities); now 1.04 at 1024²
+    # (benchmarks/texture_fidelity.py: cheek_streaks).
+    assert 0.7 < fid.cheek_streaks < 1.2, fid
     assert np.isfinite(fid.psnr_db) and -255.0 < fid.cheek_grey < 255.0, fid
     # The cheek's difference is a mean over the right pixels: lightening the texture by
     # 20 grey levels lightens its unlit render by 20 (where nothing clips).
@@ -162,6 +166,26 @@ def test_side_reprojection_gives_the_side_layer_back_and_weighs_the_cheek(exampl
     other.vertex_region = other.vertex_region[:-1]
     with pytest.raises(InputError, match="laid out for"):
         side_reprojection(result.head, other, pair.side, side)
+
+
+def test_a_side_photo_with_another_exposure_gives_the_same_texture(example):
+    """The side photo taken with another white balance (green down 12 %, blue down 24 %): the
+    gains it is brought to the front photo's skin by take the change back (the de-lighting
+    keeps each photo's mean colour), and the side layer comes out as before."""
+    from recon.texture.exposure import apply_gain
+
+    pair, result = example
+    k = np.array([1.0, 0.88, 0.76])
+    shifted = PhotoPair(pair.front, apply_gain(pair.side, k), pair.fdp, pair.paths)
+    cam = example_camera()
+    r = build_head(shifted, ipd_mm=cam["ipd_mm"], focal_px=cam["focal_px"], texture_size=1024)
+    assert np.all(np.abs(result.skin.side_gain - 1.0) < 0.2), result.skin.side_gain
+    np.testing.assert_allclose(r.skin.side_gain * k, result.skin.side_gain, rtol=0.02)
+    used = result.skin.masks[1]
+    before = result.skin.layers[1][used].mean(axis=0)
+    after = r.skin.layers[1][used].mean(axis=0)
+    assert np.abs(after - before).max() < 2.0, (before, after)
+    assert r.head.metadata["build"]["texture_side_gain"] == pytest.approx(list(r.skin.side_gain), abs=1e-4)
 
 
 def test_both_blends_are_the_same_spline(example):
