@@ -1,10 +1,13 @@
 """The side photo's colour brought to the front photo's: one gain per channel.
 
-Two photos taken apart differ in exposure and white balance, and de-lit each on its own
+Two photos taken apart differ in exposure and white balance; de-lit each on its own
 (:mod:`recon.texture.delight` keeps each photo's mean skin colour) they still differ by
-their light's intensity and colour. The texture takes the face from the front photo and
-the cheek, ear and back of the head from the side photo: uncorrected, the cheek's skin
-steps in tone at the seam, which the multiresolution blend only spreads. As in the gain
+their light's intensity and colour, and when one of them keeps its light (a fit judged
+implausible) by its shading too. (Two photos that both keep their light are left as taken:
+between them a gain would measure their shading as much as their exposure.) The texture takes the face from the front photo and the
+cheek, ear and back of the head from the side photo: uncorrected, the cheek's skin steps
+in tone at the seam, which the multiresolution blend only spreads, and the face seen from
+the front is two people's colours. As in the gain
 compensation of panorama stitching (Brown and Lowe), the side photo is scaled by the
 gains that make it agree with the front photo where both see the same skin — the cheek
 that faces both cameras at moderate angles — measured as a ratio of medians, so that a

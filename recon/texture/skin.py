@@ -29,7 +29,10 @@ Texture generation and fitting after Lee and Magnenat-Thalmann (sections 2.2.1â€
 
 The photos' cameras come from the head's 3D feature points and the marked pixels
 (:mod:`recon.texture.cameras`); what the head covers in each photo from rendering it
-(:mod:`mpeg4.render`), which also tells which vertices each camera sees.
+(:mod:`mpeg4.render`), which also tells which vertices each camera sees. Before the light
+is taken out, a shirt over the neck is replaced by the skin above its collar
+(:mod:`recon.texture.clothes`); after, the side photo is brought to the front photo's
+colour (:mod:`recon.texture.exposure`).
 
 References
 ----------
@@ -54,6 +57,7 @@ from mpeg4.head import Head
 from .bake import fill_empty
 from .blend import blend_multiband
 from .cameras import FittedCamera
+from .clothes import remove_clothes
 from .exposure import apply_gain, side_gain
 from .regions import (FOLD, FRONT, HIDDEN, MIRRORED, REGIONS, SEEN, _depth, _folds, _head_meshes, _seen_from_around,
                       _seen_in_box, _visible, feature_line, feature_polygon, line_depth, split_by_region,
@@ -93,9 +97,9 @@ class SkinTexture:
         The lighting fitted to the ``front`` and ``side`` photos and taken out of them
         (empty when the texture keeps the photos' light).
     side_gain : (3,) float
-        The per-channel gains the de-lit side photo was scaled by to match the front
-        photo's skin (:mod:`recon.texture.exposure`; ones with a front photo alone, when
-        the texture keeps the photos' light or a photo could not be de-lit).
+        The per-channel gains the side photo was scaled by to match the front photo's skin
+        (:mod:`recon.texture.exposure`; ones with a front photo alone, and when both photos
+        keep their light).
     """
 
     texture: np.ndarray
@@ -289,6 +293,12 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
         if not head_masks[key].any():
             raise InputError(f"the head does not show in the {key} photo", where="texture",
                              fix="check the feature points of that photo")
+    # The neck under the collar, not the shirt: before the light is fitted to the skin.
+    for key in photos:
+        photos[key], covered = remove_clothes(head, photos[key], head_masks[key], cams[key].camera, seen[key])
+        if covered > 0.01:
+            say(f"the {key} photo shows clothes over {100 * covered:.0f} % of the head: filled from the neck's "
+                f"skin above the collar")
     lighting = {}
     if delight:
         from .delight import delight_photo, fit_mask
@@ -303,10 +313,11 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
         times["delight"] = time.perf_counter() - t
 
     gain = np.ones(3)
-    # One skin tone on both sides of the seam. Between de-lit photos what differs is their
-    # exposure and white balance; between lit ones, also their light, which a lit texture
-    # keeps as each photo took it.
-    if not front_only and lighting and not any(light.fallback for light in lighting.values()):
+    # One skin tone on both sides of the seam, the front photo's: de-lit, the photos still
+    # differ in exposure and white balance, and one of them may keep its light when the
+    # other could be de-lit. A texture that keeps both photos' light keeps each as taken
+    # (a gain between lit photos measures their shading as much as their exposure).
+    if not front_only and any(light.fallback is None for light in lighting.values()):
         gain = _side_gain(head, photos, seen, front, side, seen_sign)
         photos["side"] = apply_gain(photos["side"], gain)
 
