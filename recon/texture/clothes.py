@@ -75,8 +75,8 @@ def skin_pixels(photo: np.ndarray, model: tuple[np.ndarray, np.ndarray], rows: s
     grey or dark shirt still differs in chroma)."""
     mean, inv = model
     s = np.diag([1.0 / lightness, 1.0, 1.0])
-    d = _lab(photo[rows]).astype(np.float32) - mean.astype(np.float32)
-    return np.einsum("hwi,ij,hwj->hw", d, (s @ inv @ s).astype(np.float32), d) <= SKIN_CHI2
+    d = _lab(photo[rows]) - mean.astype(np.float32)
+    return np.sum((d @ (s @ inv @ s).astype(np.float32)) * d, axis=-1) <= SKIN_CHI2
 
 
 def clothes_mask(photo: np.ndarray, head_mask: np.ndarray, model: tuple[np.ndarray, np.ndarray],
@@ -186,7 +186,7 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
     head : Head
         Fitted to the photo, with the chin (2.1) and the nose tip (9.3).
     photo : (H, W, 3) uint8
-        RGB, as taken (before its light is taken out: a shirt would spoil the fit).
+        RGB, as it goes into the texture (de-lit or not).
     head_mask : (H, W) bool
         Where the photo shows the head.
     camera : mpeg4.render.Camera
@@ -220,12 +220,20 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
     if model is None:
         return photo, 0.0
     chin, nose = camera.project(np.array([pts["2.1"], pts["9.3"]]))
-    mask = clothes_mask(photo, head_mask, model, chin[1])
+    # Only the head's region below the chin is looked at.
+    top = int(np.clip(np.ceil(chin[1]), 0, photo.shape[0]))
+    cols = np.flatnonzero(head_mask[top:].any(axis=0))
+    rows = np.flatnonzero(head_mask[top:].any(axis=1))
+    if not len(cols):
+        return photo, 0.0
+    box = np.s_[top:top + rows[-1] + 1, cols[0]:cols[-1] + 1]
+    crop, crop_head = photo[box], head_mask[box]
+    mask = clothes_mask(crop, crop_head, model, 0.0)
     if not mask.any():
         return photo, 0.0
-    top = int(np.clip(np.ceil(chin[1]), 0, photo.shape[0]))
-    skin = np.zeros_like(mask)
-    skin[top:] = head_mask[top:] & skin_pixels(photo, model, slice(top, None)) & ~mask[top:]
+    skin = crop_head & skin_pixels(crop, model) & ~mask
     # Half the chin's height under the nose: the neck's skin right above a collar.
     band = max(8, int(round(0.5 * abs(chin[1] - nose[1]))))
-    return fill_from_above(photo, mask, skin, band), float(mask.sum() / max(head_mask.sum(), 1))
+    out = photo.copy()
+    out[box] = fill_from_above(crop, mask, skin, band)
+    return out, float(mask.sum() / max(head_mask.sum(), 1))

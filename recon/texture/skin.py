@@ -29,10 +29,10 @@ Texture generation and fitting after Lee and Magnenat-Thalmann (sections 2.2.1â€
 
 The photos' cameras come from the head's 3D feature points and the marked pixels
 (:mod:`recon.texture.cameras`); what the head covers in each photo from rendering it
-(:mod:`mpeg4.render`), which also tells which vertices each camera sees. Before the light
-is taken out, a shirt over the neck is replaced by the skin above its collar
-(:mod:`recon.texture.clothes`); after, the side photo is brought to the front photo's
-colour (:mod:`recon.texture.exposure`).
+(:mod:`mpeg4.render`), which also tells which vertices each camera sees. Once the light
+is taken out, the side photo is brought to the front photo's colour
+(:mod:`recon.texture.exposure`) and a shirt over the neck is replaced by the skin above
+its collar (:mod:`recon.texture.clothes`).
 
 References
 ----------
@@ -293,12 +293,6 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
         if not head_masks[key].any():
             raise InputError(f"the head does not show in the {key} photo", where="texture",
                              fix="check the feature points of that photo")
-    # The neck under the collar, not the shirt: before the light is fitted to the skin.
-    for key in photos:
-        photos[key], covered = remove_clothes(head, photos[key], head_masks[key], cams[key].camera, seen[key])
-        if covered > 0.01:
-            say(f"the {key} photo shows clothes over {100 * covered:.0f} % of the head: filled from the neck's "
-                f"skin above the collar")
     lighting = {}
     if delight:
         from .delight import delight_photo, fit_mask
@@ -320,6 +314,14 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     if not front_only and any(light.fallback is None for light in lighting.values()):
         gain = _side_gain(head, photos, seen, front, side, seen_sign)
         photos["side"] = apply_gain(photos["side"], gain)
+
+    # The neck under the collar, not the shirt. (After the light is taken out: the fit's
+    # judgement of the photos is left as it was; a shirt still weighs on the fit.)
+    for key in photos:
+        photos[key], covered = remove_clothes(head, photos[key], head_masks[key], cams[key].camera, seen[key])
+        if covered > 0.01:
+            say(f"the {key} photo shows clothes over {100 * covered:.0f} % of the head: filled from the neck's "
+                f"skin above the collar")
 
     say(f"warping the photos into a {size}x{size} texture")
     t2 = time.perf_counter()
