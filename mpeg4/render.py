@@ -197,6 +197,16 @@ class Camera:
         """(K, 3) float64 camera-frame coordinates (metres) of (K, 3) world points."""
         return (np.asarray(points, dtype=np.float64).reshape(-1, 3) - self.centre) @ self.rotation.T
 
+    def towards(self, points) -> np.ndarray:
+        """(K, 3) float64 unit directions from (K, 3) world points towards the camera: to
+        its centre for a perspective camera, along its backward axis (the same for every
+        point) for an orthographic one."""
+        p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        if not self.perspective:
+            return np.tile(self.rotation[2], (len(p), 1))
+        d = self.centre - p
+        return d / np.linalg.norm(d, axis=1, keepdims=True)
+
     def depth(self, points) -> np.ndarray:
         """(K,) float64 depth of (K, 3) world points along the viewing axis, metres.
 

@@ -290,11 +290,8 @@ def _facing(part, cam: FittedCamera, facing_deg: float) -> np.ndarray:
     from mpeg4.render import vertex_normals
 
     v = part.vertices
-    c = cam.camera
-    to_cam = (c.centre[None] - v) if c.perspective else np.broadcast_to(c.rotation[2], v.shape)
-    to_cam = to_cam / np.linalg.norm(to_cam, axis=1, keepdims=True)
     n = vertex_normals(v, part.triangles)
-    return np.abs(np.sum(n * to_cam, axis=1)) >= np.cos(np.radians(facing_deg))
+    return np.abs(np.sum(n * cam.camera.towards(v), axis=1)) >= np.cos(np.radians(facing_deg))
 
 
 @dataclass

@@ -16,7 +16,9 @@ import cv2
 import numpy as np
 
 from mpeg4.head import Head
-from mpeg4.render import Camera
+from mpeg4.render import Camera, vertex_normals
+
+from .delight import fit_mask
 
 __all__ = ["SKIN_CHI2", "skin_model", "skin_pixels", "clothes_mask", "fill_from_above", "remove_clothes"]
 
@@ -178,7 +180,8 @@ def fill_from_above(photo: np.ndarray, mask: np.ndarray, skin: np.ndarray, band_
 
 
 def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera: Camera,
-                   seen: np.ndarray) -> tuple[np.ndarray, float]:
+                   seen: np.ndarray, normals: np.ndarray | None = None,
+                   skin: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """A photo of ``head`` with the clothes over its neck filled from the skin above them.
 
     Parameters
@@ -193,6 +196,11 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
         The photo's camera.
     seen : (N,) bool
         The head's skin vertices the camera sees.
+    normals : (N, 3) float, optional
+        The skin's vertex normals (computed when None).
+    skin : (N,) bool, optional
+        The skin vertices whose colour is skin (:func:`recon.texture.delight.fit_mask` when
+        None).
 
     Returns
     -------
@@ -201,21 +209,16 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
     share : float
         Of the head's region the clothes covered.
     """
-    from mpeg4.render import vertex_normals
-
-    from .delight import fit_mask
-
     pts = head.fp_positions()
     if "2.1" not in pts or "9.3" not in pts:
         return photo, 0.0
     v = head.skin.vertices
+    normals = vertex_normals(v, head.skin.triangles) if normals is None else normals
+    skin = fit_mask(head) > 0 if skin is None else skin
     # The skin model from the face above the chin, facing the camera within 45°: not the
     # neck (it may be under the collar), nor the rims and sideburns seen edge-on.
-    to_cam = (camera.centre[None] - v) if camera.perspective else \
-        np.broadcast_to(np.asarray(camera.rotation[2], float), v.shape)
-    facing = np.sum(vertex_normals(v, head.skin.triangles) * to_cam, axis=1) >= \
-        np.cos(np.radians(45.0)) * np.linalg.norm(to_cam, axis=1)
-    face = (fit_mask(head) > 0) & seen & facing & (v[:, 1] > pts["2.1"][1])
+    facing = np.sum(normals * camera.towards(v), axis=1) >= np.cos(np.radians(45.0))
+    face = skin & seen & facing & (v[:, 1] > pts["2.1"][1])
     model = skin_model(photo, camera.project(v[face]))
     if model is None:
         return photo, 0.0
@@ -231,9 +234,9 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
     mask = clothes_mask(crop, crop_head, model, 0.0)
     if not mask.any():
         return photo, 0.0
-    skin = crop_head & skin_pixels(crop, model) & ~mask
+    source = crop_head & skin_pixels(crop, model) & ~mask
     # Half the chin's height under the nose: the neck's skin right above a collar.
     band = max(8, int(round(0.5 * abs(chin[1] - nose[1]))))
     out = photo.copy()
-    out[box] = fill_from_above(crop, mask, skin, band)
+    out[box] = fill_from_above(crop, mask, source, band)
     return out, float(mask.sum() / max(head_mask.sum(), 1))

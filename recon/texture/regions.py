@@ -95,7 +95,7 @@ def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, 
 
 def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, skin_triangles: np.ndarray,
               side: str, toward_front: np.ndarray, toward_side: np.ndarray,
-              step: float = _NECK_STEP) -> tuple[np.ndarray, np.ndarray]:
+              step: float = _NECK_STEP, normals: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The line along which the front and the side photo see one side of the head alike,
     top to bottom: where the front region ends when both photos are at hand.
 
@@ -120,6 +120,8 @@ def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, ski
         on this side of the face (the side photo's, or its mirror image).
     step : float
         Metres between the line's points below the brow.
+    normals : (N, 3) float, optional
+        The skin's vertex normals (computed when None).
 
     Returns
     -------
@@ -134,7 +136,7 @@ def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, ski
     top = 3  # the skull's top, the hairline's end and the brow's end
     sign = 1.0 if side == "L" else -1.0
     v = np.asarray(skin_vertices, float)
-    n = vertex_normals(v, np.asarray(skin_triangles))
+    n = vertex_normals(v, np.asarray(skin_triangles)) if normals is None else normals
     order = np.argsort(ear[:, 1])
     z_ear = np.interp(v[:, 1], ear[order, 1], ear[order, 2])
     better = n @ np.asarray(toward_front, float) - n @ np.asarray(toward_side, float) >= 0

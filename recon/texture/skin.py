@@ -53,11 +53,13 @@ import numpy as np
 
 from mpeg4.errors import InputError
 from mpeg4.head import Head
+from mpeg4.render import vertex_normals
 
 from .bake import fill_empty
 from .blend import blend_multiband
 from .cameras import FittedCamera
 from .clothes import remove_clothes
+from .delight import fit_mask
 from .exposure import apply_gain, side_gain
 from .regions import (FOLD, FRONT, HIDDEN, MIRRORED, REGIONS, SEEN, _depth, _folds, _head_meshes, _seen_from_around,
                       _seen_in_box, _visible, feature_line, feature_polygon, line_depth, split_by_region,
@@ -205,6 +207,8 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     skin = head.skin
     V = skin.vertices
     pts = head.fp_positions()
+    skin_normals = vertex_normals(V, skin.triangles)
+    skin_to_fit = fit_mask(head)  # the skin whose colour is skin (no hair, brows, lips, eyes)
     front_only = side_photo is None
     if front_only:
         from .skin_model import virtual_side_camera
@@ -236,7 +240,8 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     if front_only:  # the front photo gives all it can, up to the ears
         lines = {k: feature_line(pts, V, skin.triangles, k) for k in ("L", "R")}
     else:
-        lines = {k: view_line(pts, V, skin.triangles, k, *d) for k, d in _towards(V, front, side).items()}
+        lines = {k: view_line(pts, V, skin.triangles, k, *d, normals=skin_normals)
+                 for k, d in _towards(V, front, side).items()}
     polygon = feature_polygon(front, lines["L"][0], lines["R"][0])
     front_px = front.project(V)
     depth_of_line = line_depth(lines["L"][0], lines["R"][0], V[:, 1])
@@ -295,11 +300,10 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
                              fix="check the feature points of that photo")
     lighting = {}
     if delight:
-        from .delight import delight_photo, fit_mask
+        from .delight import delight_photo
 
         say("taking the photos' lighting out (spherical-harmonic shading fit)")
         t = time.perf_counter()
-        skin_to_fit = fit_mask(head)  # the same skin in both photos
         for key, photo in list(photos.items()):
             photos[key], lighting[key] = delight_photo(head, photo, cams[key].camera, skin_to_fit, normals[key])
             if lighting[key].fallback:
@@ -312,13 +316,14 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     # other could be de-lit. A texture that keeps both photos' light keeps each as taken
     # (a gain between lit photos measures their shading as much as their exposure).
     if not front_only and any(light.fallback is None for light in lighting.values()):
-        gain = _side_gain(head, photos, seen, front, side, seen_sign)
+        gain = _side_gain(V, skin_normals, skin_to_fit > 0, photos, seen, front, side, seen_sign)
         photos["side"] = apply_gain(photos["side"], gain)
 
     # The neck under the collar, not the shirt. (After the light is taken out: the fit's
     # judgement of the photos is left as it was; a shirt still weighs on the fit.)
     for key in photos:
-        photos[key], covered = remove_clothes(head, photos[key], head_masks[key], cams[key].camera, seen[key])
+        photos[key], covered = remove_clothes(head, photos[key], head_masks[key], cams[key].camera, seen[key],
+                                              normals=skin_normals, skin=skin_to_fit > 0)
         if covered > 0.01:
             say(f"the {key} photo shows clothes over {100 * covered:.0f} % of the head: filled from the neck's "
                 f"skin above the collar")
@@ -356,22 +361,17 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
                        gain)
 
 
-def _side_gain(head: Head, photos: dict, seen: dict, front: FittedCamera, side: FittedCamera,
-               seen_sign: float) -> np.ndarray:
+def _side_gain(V: np.ndarray, n: np.ndarray, skin: np.ndarray, photos: dict, seen: dict, front: FittedCamera,
+               side: FittedCamera, seen_sign: float) -> np.ndarray:
     """(3,) gains for the side photo (:func:`recon.texture.exposure.side_gain`) from the skin
-    on its side of the face that both cameras see within 60° of its normal and about
-    equally squarely: along the seam, where a light that stands by each camera (a flash,
-    a lamp behind the photographer) also falls alike, so the gain is the photos' exposure
-    and not their shading."""
-    from mpeg4.render import vertex_normals
-
-    from .delight import fit_mask
-
-    V = head.skin.vertices
+    vertices ``V`` (normals ``n``; ``skin``: those whose colour is skin) on its side of the
+    face that both cameras see within 60° of their normal and about equally squarely: along
+    the seam, where a light that stands by each camera (a flash, a lamp behind the
+    photographer) also falls alike, so the gain is the photos' exposure and not their
+    shading."""
     toward_front, toward_side = _towards(V, front, side)["L" if seen_sign > 0 else "R"]
-    n = vertex_normals(V, head.skin.triangles)
     square = np.cos(np.radians(60.0))
-    usable = ((fit_mask(head) > 0) & seen["front"] & seen["side"] & (V[:, 0] * seen_sign > 0)
+    usable = (skin & seen["front"] & seen["side"] & (V[:, 0] * seen_sign > 0)
               & (n @ toward_front >= square) & (n @ toward_side >= square)
               & (np.abs(n @ toward_front - n @ toward_side) <= 0.2))
     return side_gain(photos["front"], photos["side"], front.project(V), side.project(V), usable)
@@ -381,14 +381,8 @@ def _towards(vertices: np.ndarray, front: FittedCamera, side: FittedCamera) -> d
     """For each side of the face (``"L"``: x > 0), the unit directions from the head towards
     the front camera and towards the side camera on that side (the side photo's, or its
     mirror image for the other side)."""
-    centre = vertices.mean(axis=0)
-
-    def toward(cam):
-        c = cam.camera
-        d = (c.centre - centre) if c.perspective else np.asarray(c.rotation[2], float)
-        return d / np.linalg.norm(d)
-
-    f, s = toward(front), toward(side)
+    centre = vertices.mean(axis=0, keepdims=True)
+    f, s = front.camera.towards(centre)[0], side.camera.towards(centre)[0]
     return {key: (f, s if s[0] * sign > 0 else s * (-1.0, 1.0, 1.0)) for key, sign in (("L", 1.0), ("R", -1.0))}
 
 

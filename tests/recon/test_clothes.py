@@ -110,7 +110,7 @@ def test_a_shirt_is_not_painted_on_the_neck(ict_npz, monkeypatch):
     filled = build_head(pair, ipd_mm=sp.person.ipd_mm, focal_px=sp.focal_px, texture_size=1024,
                         progress=said.append)
     assert any("clothes over" in s and "front photo" in s for s in said), said
-    monkeypatch.setattr(skin_module, "remove_clothes", lambda head, photo, *a: (photo, 0.0))
+    monkeypatch.setattr(skin_module, "remove_clothes", lambda head, photo, *a, **k: (photo, 0.0))
     painted = build_head(pair, ipd_mm=sp.person.ipd_mm, focal_px=sp.focal_px, texture_size=1024)
     neck, face = _neck_and_face_error(filled, sp, data)
     neck0, face0 = _neck_and_face_error(painted, sp, data)
