@@ -448,7 +448,8 @@ def _layer_masks(A: np.ndarray, polygon: np.ndarray, pts, front: FittedCamera, s
 def textured_head(head: Head, skin: SkinTexture, front_photo: np.ndarray, seed: int = 0) -> Head:
     """The head with the skin's texture applied and the other parts given textures of
     their own: the eyes with the iris colour of the front photo (sampled at the pupils
-    3.5 and 3.6), teeth, gums and tongue made by :mod:`recon.texture.materials`.
+    3.5 and 3.6), teeth, gums and tongue made by :mod:`recon.texture.materials` and lit as
+    the open mouth lets light in (:mod:`recon.texture.mouth`).
 
     Parameters
     ----------
@@ -462,7 +463,7 @@ def textured_head(head: Head, skin: SkinTexture, front_photo: np.ndarray, seed: 
     """
     from mpeg4.seams import split_vertices
 
-    from . import materials
+    from . import materials, mouth
 
     if head.skin.n_vertices != len(skin.vertex_region) - (len(skin.source) - len(np.unique(skin.source))) \
             or skin.source.max() >= head.skin.n_vertices:
@@ -485,16 +486,11 @@ def textured_head(head: Head, skin: SkinTexture, front_photo: np.ndarray, seed: 
         part.uv = materials.eye_uv(part.vertices, centre, gaze)
         part.texture = materials.eye_texture(256, tuple(np.clip(rgb, 0, 255)))
         part.colour = (1.0, 1.0, 1.0)
-    for name in ("teeth_upper", "teeth_lower", "gums_upper", "gums_lower", "tongue"):
-        part = out.parts.get(name)
-        if part is None:
-            continue
-        part.uv = materials.planar_uv(part.vertices)
-        if name.startswith("teeth"):
-            part.texture = materials.teeth_texture(128, seed)
-        else:
-            part.texture = materials.mottled_texture(np.asarray(part.colour) * 255, 128, seed)
-        part.colour = (1.0, 1.0, 1.0)
+    # The mouth's parts are lit as the open mouth lets light in, found on the head before
+    # its skin was split (its topology is the generic head's, whose tables open the jaw).
+    posed = mouth.open_pose(head)
+    light = mouth.cavity_light(posed, {name: p.triangles for name, p in head.parts.items()})
+    out = mouth.mouth_textures(out, light, seed)
     out.metadata = dict(out.metadata, texture={"regions": {r: int((skin.triangle_region == k).sum())
                                                            for k, r in enumerate(REGIONS)},
                                                "size": int(skin.texture.shape[0]),
