@@ -133,6 +133,9 @@ def measure(name, front, side, other, out: Path, rec: Recogniser, texture_size: 
     res = built[0]
     for step in ("detection", "shape", "texture", "export"):
         fig[f"seconds_{step}"] = round(res.timings.get(step, float("nan")), 2)
+    # How far each photo's pixels may land from their skin (the view lines weigh them by it).
+    for view, r in zip(("front", "side"), res.skin.registration_m):
+        fig[f"registration_{view}_mm"] = round(1000 * float(r), 2)
     head = res.head
     found = read_fdp_json(out / "annotations.fdp.json")
     facing = found.metadata.get("landmarks", {}).get("side_facing", {}).get("facing", "left")

@@ -48,6 +48,19 @@ class FittedCamera:
         """(K, 2) pixels of (K, 3) points of the head (metres)."""
         return self.camera.project(points)
 
+    def registration_m(self, at: np.ndarray, floor_m: float = 0.0) -> float:
+        """How far (metres, on the head near ``at``) the photo's pixels may land from the
+        skin they belong to: the median of the feature points' residuals, one pixel's
+        footprint (a camera that fits its points exactly still samples a pixel's width)
+        and ``floor_m`` (how well the points themselves are placed: residuals below it say
+        nothing of the camera), added in quadrature."""
+        at = np.asarray(at, dtype=np.float64).reshape(1, 3)
+        step = 1e-3 * self.camera.rotation[0]  # a millimetre along the image's rows
+        px_per_m = float(np.linalg.norm(self.camera.project(at + step) - self.camera.project(at))) / 1e-3
+        r = np.array(list(self.residual_px.values()), dtype=np.float64)
+        median = float(np.median(r)) if len(r) else 0.0
+        return float(np.hypot(np.hypot(median, 1.0) / max(px_per_m, 1e-9), floor_m))
+
     @property
     def rms_px(self) -> float:
         r = np.array(list(self.residual_px.values()))

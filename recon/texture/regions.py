@@ -95,7 +95,8 @@ def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, 
 
 def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, skin_triangles: np.ndarray,
               side: str, toward_front: np.ndarray, toward_side: np.ndarray,
-              step: float = _NECK_STEP, normals: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+              step: float = _NECK_STEP, normals: np.ndarray | None = None,
+              registration: tuple[float, float] = (1.0, 1.0)) -> tuple[np.ndarray, np.ndarray]:
     """The line along which the front and the side photo see one side of the head alike,
     top to bottom: where the front region ends when both photos are at hand.
 
@@ -106,8 +107,11 @@ def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, ski
     brow's end: exact in both photos). Below the brow's end, every ``step`` metres down to
     the feature line's end, it splits the band of skin ahead of the feature line at that
     height, ordered outwards, where the least skin area goes to the photo that sees it
-    worse: a vertex is better seen from the front when its normal faces the front camera
-    at least as squarely as the side camera (``n . toward_front >= n . toward_side``).
+    worse: a vertex is better seen from the front when its colour lands closer to it from
+    there. A photo whose pixels land within ``r`` of where they belong (its registration)
+    puts a surface seen at angle θ within ``r / cos θ``, so the front wins when
+    ``n . toward_front / r_front >= n . toward_side / r_side``: with equal registrations,
+    when it faces the front camera at least as squarely as the side camera.
     One split per band, weighed by area, so that the side of the nose or a hollow at the
     temple moves it only by their own area instead of cutting the face there.
 
@@ -122,6 +126,10 @@ def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, ski
         Metres between the line's points below the brow.
     normals : (N, 3) float, optional
         The skin's vertex normals (computed when None).
+    registration : (float, float)
+        How far the front and the side photo's pixels may land from the skin they belong
+        to (:meth:`recon.texture.cameras.FittedCamera.registration_m`); only their ratio
+        counts.
 
     Returns
     -------
@@ -139,7 +147,8 @@ def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, ski
     n = vertex_normals(v, np.asarray(skin_triangles)) if normals is None else normals
     order = np.argsort(ear[:, 1])
     z_ear = np.interp(v[:, 1], ear[order, 1], ear[order, 2])
-    better = n @ np.asarray(toward_front, float) - n @ np.asarray(toward_side, float) >= 0
+    r_front, r_side = registration
+    better = (n @ np.asarray(toward_front, float)) * r_side - (n @ np.asarray(toward_side, float)) * r_front >= 0
     area = np.zeros(len(v))  # each vertex's share of the skin's area
     t = np.asarray(skin_triangles)
     np.add.at(area, t.ravel(), np.repeat(0.5 / 3 * np.linalg.norm(np.cross(v[t[:, 1]] - v[t[:, 0]],

@@ -209,3 +209,28 @@ def test_texture_refuses_bad_photos(example):
         texture_skin(result.head, pair.front, pair.side, cams["front"], cams["side"], size=32)
     small = fit_camera(result.head.fp_positions(), pair.fdp.views["front"].points, 1024, 1280)
     assert small.rms_px < 10  # the orthographic fit is close but not what the photo was taken with
+
+
+def test_a_side_photo_registered_worse_gives_less_of_the_cheek(example):
+    # The view line weighs each photo by how far its pixels may land from their skin: a
+    # side photo three times worse registered leaves more of the cheek to the front photo,
+    # and one registered as well as the front photo is the plain "squarer view wins" line.
+    from mpeg4.render import vertex_normals
+    from recon.texture.regions import view_line
+
+    _, result = example
+    head, cams = result.head, result.skin.cameras
+    v, t = head.skin.vertices, head.skin.triangles
+    n = vertex_normals(v, t)
+    centre = v.mean(axis=0, keepdims=True)
+    to_front, to_side = cams["front"].camera.towards(centre)[0], cams["side"].camera.towards(centre)[0]
+    side = "L" if to_side[0] > 0 else "R"
+    lines = {r: view_line(head.fp_positions(), v, t, side, to_front, to_side, normals=n, registration=(1.0, r))[0]
+             for r in (1.0, 3.0, 1e6)}
+    reach = {r: np.median(np.abs(p[3:, 0])) for r, p in lines.items()}  # how far out the front reaches
+    assert reach[3.0] > reach[1.0] + 0.002  # metres
+    assert reach[1e6] >= reach[3.0]
+    assert np.allclose(lines[1.0], view_line(head.fp_positions(), v, t, side, to_front, to_side, normals=n)[0])
+    # The build records both registrations; the example's cameras fit within a few mm.
+    reg = result.skin.registration_m
+    assert 0 < reg[0] < 0.005 and 0 < reg[1] < 0.005
