@@ -33,22 +33,13 @@ VIEWS = (("front", 0.0, 0.0), ("three_quarter", 30.0, 5.0))
 
 
 def example_head():
-    """The example's head, textured as ``recon example`` textures it (no tables)."""
-    from recon.build import load_pair
+    """The example's head as ``recon example`` builds it (no tables: the generic head's open it)."""
+    from recon.build import build_head, load_pair
     from recon.example import EXAMPLE_FDP, example_camera
-    from recon.shape.fit import fit_head
-    from recon.texture import texture_skin
-    from recon.texture.cameras import fit_camera
-    from recon.texture.skin import textured_head
 
     cam = example_camera()
-    pair = load_pair(EXAMPLE_FDP)
-    head, _ = fit_head(pair.fdp, ipd_mm=cam["ipd_mm"], focal_px=cam["focal_px"])
-    pts = head.fp_positions()
-    cams = {n: fit_camera(pts, pair.fdp.views[n].points, pair.fdp.views[n].width, pair.fdp.views[n].height,
-                          focal_px=cam["focal_px"]) for n in ("front", "side")}
-    skin = texture_skin(head, pair.front, pair.side, cams["front"], cams["side"], size=1024)
-    return head, textured_head(head, skin, pair.front)
+    return build_head(load_pair(EXAMPLE_FDP), ipd_mm=cam["ipd_mm"], focal_px=cam["focal_px"],
+                      texture_size=1024).head
 
 
 def measure(head, label: str) -> None:
@@ -75,7 +66,7 @@ def main(argv=None) -> int:
         return 0
     from recon.texture.mouth import cavity_light, open_pose
 
-    head, textured = example_head()
+    head = textured = example_head()
     triangles = {n: p.triangles for n, p in head.parts.items()}
     posed = open_pose(head)
     cavity_light(posed, triangles)  # warm-up (GL context)
