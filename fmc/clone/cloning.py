@@ -444,6 +444,9 @@ def clone(source: Head, target: Head, antialias: float | None = 0.0, triangulati
           alignment: str = "surface") -> tuple[Head, list[str]]:
     """The target with the source's morph targets and Facial Animation Tables cloned onto it.
 
+    A target whose mesh joins its lips (:func:`fmc.clone.seal.sealed_mouth`) is first
+    ripped open along its lip line, so that the jaw can part them; a warning says so.
+
     Morph targets keep their names. The FAT's mesh tables travel as morph targets
     (:func:`mpeg4.fat.fat_to_morph_targets`, in the source's FAPU), are cloned, scaled per
     FAP so its feature point moves by the target's FAP unit, and rebuilt in the target's
@@ -464,6 +467,9 @@ def clone(source: Head, target: Head, antialias: float | None = 0.0, triangulati
     """
     from mpeg4.fat import FAT, FaceDefTable, FaceDefTransform, fat_from_morph_targets, fat_to_morph_targets
 
+    from .seal import rip_mouth
+
+    target, ripped = rip_mouth(target)
     targets = dict(source.morph_targets)
     specs = []
     if source.fat is not None and len(source.fat):
@@ -478,6 +484,9 @@ def clone(source: Head, target: Head, antialias: float | None = 0.0, triangulati
     corr = correspond(source, target, antialias=antialias, triangulation=triangulation, alignment=alignment)
     cloned = corr.transfer(targets) if targets else {}
     warnings = list(corr.warnings)
+    if ripped:
+        warnings.append(f"the mesh joins the lips, so the jaw could not part them: the mouth was opened along its "
+                        f"line ({ripped} vertices duplicated; 2.3, 2.8 and 2.9 put on the lower lip's side)")
     out = target.copy()
     out.morph_targets = {n: cloned[n] for n in source.morph_targets}
     if source.fat is not None and len(source.fat):
