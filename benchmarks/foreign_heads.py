@@ -16,7 +16,9 @@ targets, the MediaPipe face mask) and each mesh file given, as ``fmc clone`` tak
 
 then MakeHuman as a source: its jaw drop (AU 26), smile (AU 12), happy and B/M/P viseme
 targets cloned onto the generic head, with the inverted triangles and edge stretch of each
-at full weight.
+at full weight, and how far the lower teeth move on average beside the chin (2.1):
+MakeHuman has no teeth of its own to give (``teeth_lower_mm``, ``chin_mm``; the generic
+head's own jaw opening moves them 0.76 times as far as its chin).
 
 No hand-checked point table ships yet, so no marking error is printed.
 
@@ -129,9 +131,15 @@ def makehuman_as_source(glb: Path) -> dict[str, float]:
     moved.morph_targets = cloned
     checks = SurfaceChecks(generic)
     for name in cloned:
-        skin = moved.morphed({name: 1.0})["skin"]
+        parts = moved.morphed({name: 1.0})
+        skin = parts["skin"]
         out[f"{name}.inverted_triangles"] = checks.inverted(skin)
         out[f"{name}.edge_stretch"] = checks.stretch(skin)
+        # The lower teeth follow the chin (they stayed up when MakeHuman had none to give).
+        chin = np.linalg.norm(generic.fp_position("2.1", parts) - generic.fp_position("2.1"))
+        teeth = np.linalg.norm(parts["teeth_lower"] - generic.parts["teeth_lower"].vertices, axis=1).mean()
+        out[f"{name}.teeth_lower_mm"] = 1000 * teeth
+        out[f"{name}.chin_mm"] = 1000 * chin
     return out
 
 

@@ -24,7 +24,7 @@ from mpeg4.head import Head, SparseDisplacement
 
 from .align import folded_triangles, midway, outer_radius, surface_warp, triangulation_for, vertex_positions, warp
 from .contours import contour_pairs
-from .followers import surface_followers
+from .followers import JAW_ROLES, jaw_anchors, jaw_riders, surface_followers
 from .interpolate import gradient_operator, interpolation_matrix
 from .parts import PART_ROLES, PartRef, feature_point_pins, find_parts, part_correspondence, transfer_part_motion
 from .regions import (LIP_FPS, face_scale, lip_classes, lip_sides_on_mesh, lip_vertex_classes, normalisation,
@@ -107,6 +107,9 @@ class Correspondence:
         Target parts the source has nothing for that lie on the skin
         (:func:`fmc.clone.followers.surface_followers`): (their vertices, target skin
         vertices) weights; they move as the skin under them.
+    riders : tuple of str
+        Target parts in a jaw role (:data:`fmc.clone.followers.JAW_ROLES`) the source has
+        nothing for: they turn with the jaw (:func:`fmc.clone.followers.jaw_riders`).
     """
 
     source: Head
@@ -119,6 +122,7 @@ class Correspondence:
     warnings: list[str] = field(default_factory=list)
     unmatched: set[str] = field(default_factory=set)
     followers: dict[str, sparse.csr_matrix] = field(default_factory=dict)
+    riders: tuple[str, ...] = ()
 
     def transfer(self, targets: Mapping[str, Mapping[str, SparseDisplacement]], tol: float = 1e-7
                  ) -> dict[str, dict[str, SparseDisplacement]]:
@@ -133,6 +137,7 @@ class Correspondence:
             if note not in self.warnings:
                 self.warnings.append(note)
         result: dict[str, dict[str, np.ndarray]] = {n: {} for n in names}
+        jaw = jaw_anchors(self.target) if self.riders else None
         for start in range(0, len(names), 32):  # a block at a time keeps the dense arrays small
             block = names[start:start + 32]
             motion = np.zeros((n_s, 3 * len(block)))
@@ -144,6 +149,8 @@ class Correspondence:
                 result[n]["skin"] = moved[:, 3 * j:3 * j + 3] * self.target_scale
                 for part, w in self.followers.items():
                     result[n][part] = w @ result[n]["skin"]
+                if jaw is not None:
+                    result[n].update(jaw_riders(self.target, jaw, result[n]["skin"], self.riders))
         for s, t, w in self.parts:
             src_pts, tgt_pts = s.points(self.source), t.points(self.target)
             n_part = self.source.parts[s.part].n_vertices
@@ -222,7 +229,15 @@ def correspond(source: Head, target: Head, antialias: float | None = 0.0, triang
     lone = [t_parts[k].part for k in set(t_parts) - set(s_parts) if k not in PART_ROLES and t_parts[k].part != "skin"]
     followers, more = surface_followers(target, sorted(lone))
     notes += more
-    return Correspondence(source, target, skin, s_scale, t_scale, pairs, support, notes, unmatched, followers)
+    # The lower teeth and the tongue, if the source has none, turn with the jaw.
+    riders = tuple(t_parts[k].part for k in JAW_ROLES
+                   if k in t_parts and k not in s_parts and t_parts[k].part != "skin")
+    if riders and jaw_anchors(target) is None:
+        riders = ()
+    if riders:
+        notes.append(f"the source has no {', '.join(riders)}: on the target they turn with the jaw")
+    return Correspondence(source, target, skin, s_scale, t_scale, pairs, support, notes, unmatched, followers,
+                          riders)
 
 
 def _in_skin(head: Head, parts: Mapping[str, PartRef]) -> np.ndarray:

@@ -10,6 +10,11 @@ skin instead: each vertex to the skin's closest point (a triangle and its baryce
 weights), and in every cloned morph target and table it moves as the skin does there
 (:func:`follower_weights`). What lies further off (glasses, a body, a throat inside the
 neck) keeps still.
+
+The lower teeth and the tongue of a target, when the source has nothing for them (a head
+whose one mesh holds everything), turn with the jaw instead: rigidly, as the jaw's feature
+points move (:func:`jaw_riders`), so that an open mouth does not leave them up among the
+upper teeth.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ from scipy import sparse
 
 from mpeg4.head import Head
 
-__all__ = ["FOLLOW_ES0", "follower_weights", "surface_followers"]
+__all__ = ["FOLLOW_ES0", "JAW_FPS", "JAW_ROLES", "follower_weights", "surface_followers", "jaw_anchors", "jaw_riders"]
 
 #: A part follows the skin when its vertices lie, by their median, within this share of
 #: ES0 of it (about 5 mm on an adult): lids and brows lie on it, lash cards a few
@@ -88,3 +93,50 @@ def surface_followers(head: Head, candidates: Iterable[str]) -> tuple[dict[str, 
             notes.append(f"the target's part '{name}' lies on the skin ({median * 1000:.1f} mm from it): "
                          "it moves as the skin under it")
     return out, notes
+
+
+#: The chin's feature points: its bottom (2.1), its boss (2.10) and corners (2.11, 2.12),
+#: where the skin is held to the jaw's bone. The skin over the jaw's angles (2.13, 2.14)
+#: slides over it: on the generic head's own jaw opening the lower teeth, turned by the
+#: chin's points, land 3.3 mm from where its tables put them (of 11.6 mm), by those and
+#: the angles' 4.4 mm.
+JAW_FPS = ("2.1", "2.10", "2.11", "2.12")
+#: Target roles that ride on the jaw: with no counterpart on the source (a head whose one
+#: mesh holds everything, its teeth not found), they turn with the jaw instead of staying.
+JAW_ROLES = ("teeth_lower", "tongue")
+
+
+def jaw_anchors(head: Head) -> sparse.csr_matrix | None:
+    """(K, N) weights of the jaw's feature points (:data:`JAW_FPS`) on the skin's vertices;
+    None with fewer than three of them on the skin."""
+    rows, cols, vals = [], [], []
+    k = 0
+    for fp in JAW_FPS:
+        b = head.feature_points.get(fp)
+        if b is None or b.part != "skin":
+            continue
+        rows += [k] * len(b.vertices)
+        cols += list(b.vertices)
+        vals += list(b.weights)
+        k += 1
+    if k < 3:
+        return None
+    return sparse.csr_matrix((vals, (rows, cols)), shape=(k, head.skin.n_vertices))
+
+
+def jaw_riders(head: Head, anchors: sparse.csr_matrix, skin_motion: np.ndarray, parts: Iterable[str]
+               ) -> dict[str, np.ndarray]:
+    """Part → (n, 3) displacement (metres) of each of ``parts`` moved rigidly as the jaw's
+    feature points move with ``skin_motion`` ((N, 3), metres): the least-squares rotation
+    and translation (Kabsch) of those points."""
+    from .parts import rigid_motion
+
+    points = anchors @ head.skin.vertices
+    moved = points + anchors @ np.asarray(skin_motion, dtype=np.float64)
+    centre = points.mean(axis=0)
+    r, t = rigid_motion(points, moved, centre)
+    out = {}
+    for name in parts:
+        x = head.parts[name].vertices
+        out[name] = (x - centre) @ r.T + centre + t - x
+    return out
