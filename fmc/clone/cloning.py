@@ -110,6 +110,9 @@ class Correspondence:
     riders : tuple of str
         Target parts in a jaw role (:data:`fmc.clone.followers.JAW_ROLES`) the source has
         nothing for: they turn with the jaw (:func:`fmc.clone.followers.jaw_riders`).
+    jaw : scipy.sparse.csr_matrix or None
+        The target's jaw points on its skin (:func:`fmc.clone.followers.jaw_anchors`),
+        when there are riders.
     """
 
     source: Head
@@ -123,6 +126,7 @@ class Correspondence:
     unmatched: set[str] = field(default_factory=set)
     followers: dict[str, sparse.csr_matrix] = field(default_factory=dict)
     riders: tuple[str, ...] = ()
+    jaw: sparse.csr_matrix | None = None
 
     def transfer(self, targets: Mapping[str, Mapping[str, SparseDisplacement]], tol: float = 1e-7
                  ) -> dict[str, dict[str, SparseDisplacement]]:
@@ -137,7 +141,6 @@ class Correspondence:
             if note not in self.warnings:
                 self.warnings.append(note)
         result: dict[str, dict[str, np.ndarray]] = {n: {} for n in names}
-        jaw = jaw_anchors(self.target) if self.riders else None
         for start in range(0, len(names), 32):  # a block at a time keeps the dense arrays small
             block = names[start:start + 32]
             motion = np.zeros((n_s, 3 * len(block)))
@@ -149,8 +152,8 @@ class Correspondence:
                 result[n]["skin"] = moved[:, 3 * j:3 * j + 3] * self.target_scale
                 for part, w in self.followers.items():
                     result[n][part] = w @ result[n]["skin"]
-                if jaw is not None:
-                    result[n].update(jaw_riders(self.target, jaw, result[n]["skin"], self.riders))
+                if self.jaw is not None:
+                    result[n].update(jaw_riders(self.target, self.jaw, result[n]["skin"], self.riders))
         for s, t, w in self.parts:
             src_pts, tgt_pts = s.points(self.source), t.points(self.target)
             n_part = self.source.parts[s.part].n_vertices
@@ -232,12 +235,13 @@ def correspond(source: Head, target: Head, antialias: float | None = 0.0, triang
     # The lower teeth and the tongue, if the source has none, turn with the jaw.
     riders = tuple(t_parts[k].part for k in JAW_ROLES
                    if k in t_parts and k not in s_parts and t_parts[k].part != "skin")
-    if riders and jaw_anchors(target) is None:
+    jaw = jaw_anchors(target) if riders else None
+    if jaw is None:
         riders = ()
     if riders:
         notes.append(f"the source has no {', '.join(riders)}: on the target they turn with the jaw")
     return Correspondence(source, target, skin, s_scale, t_scale, pairs, support, notes, unmatched, followers,
-                          riders)
+                          riders, jaw)
 
 
 def _in_skin(head: Head, parts: Mapping[str, PartRef]) -> np.ndarray:

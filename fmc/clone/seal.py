@@ -96,10 +96,9 @@ def rip_mouth(head: Head) -> tuple[Head, int]:
     v, t = skin.vertices, skin.triangles
     inner = line[1:-1]
     n = len(v)
-    copy_of = np.full(n, -1, dtype=np.int64)
-    copy_of[inner] = n + np.arange(len(inner))
     # Around each vertex of the line, the line's two edges split its fan of triangles in
-    # two; the half lying lower takes the copy (the head in its neutral frame, y up).
+    # two; the half lying lower takes the copy, vertex n + k for inner[k] (the head in its
+    # neutral frame, y up).
     tris = t.copy()
     for k, i in enumerate(inner):
         prev, nxt = int(line[k]), int(line[k + 2])
@@ -109,7 +108,7 @@ def rip_mouth(head: Head) -> tuple[Head, int]:
             return head, 0
         low = min(halves, key=lambda h: v[t[fan[h]]].mean(axis=(0, 1))[1])
         rows = fan[low]
-        tris[rows] = np.where(t[rows] == i, copy_of[i], tris[rows])
+        tris[rows] = np.where(t[rows] == i, n + k, tris[rows])
     out = split_vertices(head, "skin", np.r_[np.arange(n), inner], tris)
     verts = out.parts["skin"].vertices
     verts[n:, 1] -= PARTING

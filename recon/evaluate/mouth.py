@@ -69,6 +69,7 @@ def opening_figures(head: Head, value: float = 600.0, yaw_deg: float = 0.0, pitc
 
     from mpeg4.preview import head_meshes
     from mpeg4.render import Camera, RenderMesh, render
+    from mpeg4.unlit import render_unlit
     from recon.texture.mouth import open_pose
 
     posed = open_pose(head, value=value)
@@ -79,8 +80,8 @@ def opening_figures(head: Head, value: float = 600.0, yaw_deg: float = 0.0, pitc
     cam = Camera.fit(np.array(list(fp.values())), size[0], size[1], yaw_deg=yaw_deg, pitch_deg=pitch_deg,
                      margin=0.15, focal_px=focal_px)
     image = render(head_meshes(head, posed), cam)
-    flat = render([RenderMesh(posed[n], head.parts[n].triangles, colour=tuple(palette[n] / 255.0)) for n in names],
-                  cam, samples=0, ambient=1.0)
+    flat = render_unlit([RenderMesh(posed[n], head.parts[n].triangles, colour=tuple(palette[n] / 255.0))
+                         for n in names], cam)
 
     def polygon(keys):
         mask = np.zeros(image.shape[:2], np.uint8)

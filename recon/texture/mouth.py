@@ -28,7 +28,8 @@ import numpy as np
 
 from mpeg4.errors import InputError
 from mpeg4.head import Head
-from mpeg4.render import Camera, RenderMesh, render, vertex_normals
+from mpeg4.render import Camera, RenderMesh, vertex_normals
+from mpeg4.unlit import render_depth
 
 __all__ = ["MOUTH_PARTS", "OPEN_JAW", "BOUNCE", "sky_directions", "open_pose", "cavity_light", "shaded",
            "mouth_textures"]
@@ -101,7 +102,7 @@ def cavity_light(vertices: dict[str, np.ndarray], triangles: dict[str, np.ndarra
     """Part name → (N,) share of a uniform sky's light reaching each vertex of ``parts``.
 
     Each direction's orthographic depth render of the whole head tells which vertices it
-    sees (:func:`mpeg4.render.render`; the camera framed on ``parts`` only, since a
+    sees (:func:`mpeg4.unlit.render_depth`; the camera framed on ``parts`` only, since a
     vertex and whatever hides it project to the same pixel); a vertex's light is the
     cosine-weighted share of the directions that see it, over its hemisphere.
 
@@ -142,7 +143,7 @@ def cavity_light(vertices: dict[str, np.ndarray], triangles: dict[str, np.ndarra
         yaw = np.degrees(np.arctan2(d[0], d[2]))
         pitch = np.degrees(np.arcsin(np.clip(d[1], -1, 1)))
         cam = Camera.fit(points, size, size, yaw_deg=yaw, pitch_deg=pitch, margin=0.02)
-        _, depth = render(meshes, cam, return_depth=True, samples=0)
+        depth = render_depth(meshes, cam)
         px = np.round(cam.project(lifted)).astype(np.int64)
         inside = (px[:, 0] >= 0) & (px[:, 0] < size) & (px[:, 1] >= 0) & (px[:, 1] < size)
         seen = np.zeros(len(points), bool)
