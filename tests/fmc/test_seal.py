@@ -76,7 +76,7 @@ def test_an_open_mouth_is_left_as_it_is():
 def test_the_masks_jaw_opens_its_mouth_without_a_sheet():
     # The mask joins its lips over a 5 mm gap. Cloned before the rip, the jaw dragged 16
     # triangles into a sheet across the open mouth: each with corners apart by more than
-    # half the chin's travel. Now none.
+    # half the chin's travel (up to 0.90 of it). Now none: the largest is 0.43.
     pytest.importorskip("mediapipe")
     from chain import clone_onto
     from mpeg4.fat import apply_fat
