@@ -17,6 +17,7 @@ References
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +31,8 @@ MAX_ANGLE = 0.35
 #: the face mesh's depth, its weakest part, must not tilt the heights the front photo gives).
 SCALE_SPREAD = 0.04
 ROLL_SPREAD = np.radians(1.0)
+#: How many midline landmarks' worth an anchor's height counts in :func:`fit_profile`.
+ANCHOR_WEIGHT = 4.0
 #: Face mesh landmarks on the face's midline that the profile shows, from the top of the
 #: forehead to under the chin (not the inner lips, hidden behind the outer ones).
 MIDLINE = (10, 151, 9, 8, 168, 6, 197, 195, 5, 4, 1, 19, 94, 2, 164, 0, 17, 18, 200, 199, 175, 152)
@@ -83,7 +86,8 @@ def outline_distance(mask: np.ndarray) -> np.ndarray:
 
 
 def fit_profile(mask: np.ndarray, landmarks: np.ndarray, front_top: float, ipd_front: float,
-                scale_guess: float = 1.0, distance: np.ndarray | None = None) -> ProfileFit:
+                scale_guess: float = 1.0, distance: np.ndarray | None = None,
+                anchors: Sequence[tuple[np.ndarray, float]] = ()) -> ProfileFit:
     """Lay the face mesh's midline onto a profile silhouette facing left.
 
     A chamfer fit from several starts (scales around ``scale_guess`` and around the one
@@ -107,6 +111,12 @@ def fit_profile(mask: np.ndarray, landmarks: np.ndarray, front_top: float, ipd_f
         were taken alike).
     distance : (H, W) float, optional
         :func:`outline_distance` of the mask, when already computed.
+    anchors : sequence of ((2,) array, float)
+        Face mesh (depth, height) of parts the side photo shows by themselves (the corner
+        of the mouth, the eye), each with the row it was seen at: their heights are held
+        to those rows (:data:`ANCHOR_WEIGHT`), which settles the fit where the outline alone
+        is ambiguous (glasses before the eyes make a second nose). Only the heights:
+        the mesh's depth is its weakest part.
 
     Returns
     -------
@@ -133,6 +143,8 @@ def fit_profile(mask: np.ndarray, landmarks: np.ndarray, front_top: float, ipd_f
     nose = landmarks[1, [2, 1]]
     tip_z, tip_y = float(nose[0]), float(nose[1])
     z_top = float(landmarks[10, 2])
+    a_zy = np.array([np.asarray(zy_a, float) for zy_a, _ in anchors]).reshape(-1, 2)
+    a_row = np.array([float(r) for _, r in anchors])
 
     def residuals(x):
         fit = ProfileFit(x[0], x[1], x[2:4], 0.0)
@@ -144,7 +156,8 @@ def fit_profile(mask: np.ndarray, landmarks: np.ndarray, front_top: float, ipd_f
         f = 0.02 * x[0] * ipd_front
         extra = [0.5 * (fit.apply([[z_top, front_top]])[0, 1] - top),
                  f * (x[0] / scale_guess - 1) / SCALE_SPREAD, f * x[1] / ROLL_SPREAD]
-        return np.r_[d + off, extra]
+        held = ANCHOR_WEIGHT * (fit.apply(a_zy)[:, 1] - a_row) if len(a_row) else []
+        return np.r_[d + off, held, extra]
 
     def solve(x0):
         s = x0[0]
@@ -152,8 +165,11 @@ def fit_profile(mask: np.ndarray, landmarks: np.ndarray, front_top: float, ipd_f
         hi = np.array([3.0 * s, MAX_ANGLE, np.inf, np.inf])
         sol = least_squares(residuals, x0, bounds=(lo, hi), loss="soft_l1", f_scale=0.02 * s * ipd_front,
                             x_scale=np.array([0.05 * s, 0.02, 2.0, 2.0]), max_nfev=200)
+        # With anchors the best start is the one that lays the mesh on the outline with
+        # the parts where they were seen: the anchors' misfit, in pixels, counts with it.
+        misfit = float(np.mean(np.abs(sol.fun[len(zy):len(zy) + len(a_row)]))) / ANCHOR_WEIGHT if len(a_row) else 0.0
         return ProfileFit(float(sol.x[0]), float(sol.x[1]), sol.x[2:4].copy(),
-                          float(np.median(np.abs(sol.fun[:len(zy)]))))
+                          float(np.median(np.abs(sol.fun[:len(zy)])))), misfit
 
     # Scales to start from: the photos' own ratio, and the one that puts the nose tip at
     # the height of the silhouette's most forward point in the upper part of the head.
@@ -162,20 +178,28 @@ def fit_profile(mask: np.ndarray, landmarks: np.ndarray, front_top: float, ipd_f
     starts = [scale_guess]
     if tip_y - front_top > 0.2 * ipd_front:
         starts.append((forward - top) / (tip_y - front_top))
-    best = None
+    best, best_cost = None, np.inf
     for s0 in starts:
         if not np.isfinite(s0) or s0 <= 0:
             continue
         for f in (0.92, 1.0, 1.08):
             s = s0 * f
-            ty = top - s * front_top
-            r = int(np.clip(round(s * tip_y + ty), rows[0], rows[-1]))
-            win = np.arange(max(rows[0], r - int(0.25 * s * ipd_front)), min(rows[-1], r + int(0.25 * s * ipd_front)) + 1)
-            if not np.isfinite(prof[win]).any():
-                continue
-            fit = solve(np.array([s, 0.0, float(np.nanmin(prof[win])) - s * tip_z, ty]))
-            if best is None or fit.cost < best.cost:
-                best = fit
+            shifts = [top - s * front_top]
+            # And the shift that puts the anchors at their rows, with the top left to follow.
+            shifts += [float(np.mean(a_row - s * a_zy[:, 1]))] if len(a_row) else []
+            for ty in shifts:
+                r = int(np.clip(round(s * tip_y + ty), rows[0], rows[-1]))
+                win = np.arange(max(rows[0], r - int(0.25 * s * ipd_front)),
+                                min(rows[-1], r + int(0.25 * s * ipd_front)) + 1)
+                if not np.isfinite(prof[win]).any():
+                    continue
+                fit, misfit = solve(np.array([s, 0.0, float(np.nanmin(prof[win])) - s * tip_z, ty]))
+                # With anchors, compared in the front photo's pixels: the anchors' start may
+                # find a much smaller face, which lies closer to any outline. (Without, the
+                # side photo's pixels, as measured best on the synthetic photos.)
+                cost = (fit.cost + misfit) / fit.scale if len(a_row) else fit.cost
+                if cost < best_cost:
+                    best, best_cost = fit, cost
     if best is None:
         raise ValueError("no profile to fit")
     return best

@@ -10,6 +10,12 @@ curve has). Then:
   carries the landmarks' depth and height (the height the front photo gives) into the side
   photo, and with them every feature point, by the side table
   (:mod:`recon.landmarks.mapping`, ``recon/data/facemesh_side.csv``), for either side;
+- where the lips the photo shows lie further from the fit's mouth than the two photos'
+  heights may disagree, the outline was ambiguous (glasses before the eyes read as a
+  second nose): the fit is made again with the mouth's corner held at the lips' height,
+  and kept when the lips are found there again; lips that cannot hold it, and an eye's
+  white that far off, are not taken. A face whose profile runs off the photo's edge is
+  refused;
 - the face mesh's depth is its weakest part, off by a few millimetres for a whole eye, a
   mouth or an ear at a time: where the photo shows them (:mod:`recon.landmarks.side_parts`:
   the white of the eye, the lips, the ear's outline), their points move onto them, and the
@@ -32,7 +38,12 @@ from .mapping import SIDE_MAP_FILE, apply_mapping, load_mapping
 from .profile import ProfileFit, fit_profile, outline_distance
 from .silhouette import bumpiness, head_mask, row_extents
 
-__all__ = ["facing_of", "detect_side", "register_profile"]
+__all__ = ["ProfileCutOff", "facing_of", "detect_side", "register_profile"]
+
+
+class ProfileCutOff(InputError):
+    """The side photo's edge cuts the face's profile off: there is no profile to read
+    (``recon build`` then builds from the front photo alone, with a warning)."""
 
 
 def facing_of(mask: np.ndarray) -> str:
@@ -162,6 +173,15 @@ def register_profile(image: np.ndarray, front: ViewPoints, front_height: int,
 #: An ear is taken as found when the gradient along its outline is this many times the
 #: window's median.
 EAR_CONTRAST = 1.5
+#: A part found in the side photo whose height is further than this, as a share of the
+#: IPD, from where the fitted face mesh puts it disagrees with the fit: the lips then hold
+#: the fit, the eye's white is not taken. The calibration's default tolerance between the
+#: two photos' heights (8 mm of 63).
+PART_HEIGHT_TOL = 8.0 / 63.0
+#: The least area of a red patch, in IPD², that may hold the fit as the lips: a quarter of
+#: the lips' side view (about 0.24 IPD high, 0.3 IPD from the front to the corner, half of
+#: that box red). A smaller patch may be the lower lip alone or a red spot on the cheek.
+LIPS_AREA = 0.25 * 0.5 * 0.24 * 0.3
 #: Points on the profile (the catalogue's ``P`` in the side view) that the face mesh's
 #: table puts near it.
 _ON_PROFILE = ("9.12", "9.3", "9.15", "8.1", "8.2", "2.10", "2.1", "11.1")
@@ -250,6 +270,54 @@ def _stretch(points: dict, ids, prof: np.ndarray, anchor_pred: np.ndarray, ancho
     return k
 
 
+def _seen_parts(lab: np.ndarray, mask: np.ndarray, pts: dict, own: dict, ipd: float):
+    """The eye's white and the lips (:mod:`recon.landmarks.side_parts`) looked for where
+    the points ``pts`` put them; each None when not seen."""
+    from .side_parts import eye_white, lip_region
+
+    eye = eye_white(lab, mask, 0.5 * (pts[own["3.5"]] + pts[own["3.7"]]), ipd)
+    return eye, lip_region(lab, mask, pts[own["8.3"]], ipd)
+
+
+def _held_by_lips(lips: dict, ipd: float, lab: np.ndarray, ctx: dict, front: ViewPoints, front_height: int,
+                  depth_height: dict, own: dict):
+    """The profile fitted again with the mouth's corner held at the lips' height, when the
+    first fit put it further from them than the photos' heights may disagree: the outline
+    alone was ambiguous (glasses before the eyes make a second nose, and the fit slides a
+    feature up). Returns ``(fit, points, eye, lips)`` with the parts looked for again
+    where the new fit puts them, or None: the patch is too small to be the lips
+    (:data:`LIPS_AREA`), or is not found again where it held the fit (a red patch that is
+    not the lips drags the fit where no lips are). Not the eye: behind glasses its white is
+    confused with the lenses' glare."""
+    mask = ctx["mask"]
+    if lips["area"] < LIPS_AREA * ipd ** 2:
+        return None
+    fit = fit_profile(mask, front.extras["landmarks"], front.points["11.5"][1], front.ipd_px,
+                      mask.shape[0] / front_height, ctx["distance"],
+                      anchors=[(depth_height[own["8.3"]], lips["corner"][1])])
+    pts = {fp: fit.apply(zy[None])[0] for fp, zy in depth_height.items()}
+    eye, found = _seen_parts(lab, mask, pts, own, fit.scale * front.ipd_px)
+    if found is None or abs(found["corner"][1] - lips["corner"][1]) > PART_HEIGHT_TOL * fit.scale * front.ipd_px:
+        return None
+    return fit, pts, eye, found
+
+
+def _check_not_cut(prof: np.ndarray, y_top: float, pts: dict, scale: float, scale_guess: float,
+                   front: ViewPoints, ipd: float, flip: bool, where: str) -> None:
+    """Refuse a side photo whose edge cuts the face's profile off: the silhouette's front
+    runs along the photo's edge in the head's rows (down to the chin, by the front photo's
+    proportions at the larger of the fit's scale and the photos': a fit drawn to a cut
+    profile can shrink onto the forehead), and the fitted profile reaches that edge (a
+    background the silhouette took in, whose edge the face does not reach, is no cut)."""
+    chin = y_top + max(scale, scale_guess) * (front.points["2.1"][1] - front.points["11.5"][1])
+    face_rows = np.arange(int(y_top), int(np.clip(chin, y_top, len(prof) - 1)) + 1)
+    cut = face_rows[np.isfinite(prof[face_rows]) & (prof[face_rows] < 0.5)]
+    if len(cut) > 0.1 * ipd and any(pts[fp][0] < 0.05 * ipd for fp in _ON_PROFILE if fp in pts):
+        raise ProfileCutOff(f"the face runs off the photo's {'right' if flip else 'left'} edge (rows "
+                         f"{cut[0]}-{cut[-1]}): the profile of the nose, lips or chin is cut off",
+                         where=where, fix="give a profile photo with some background in front of the face")
+
+
 def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
                 where: str = "side photo", mask: np.ndarray | None = None,
                 facing: str | None = None) -> tuple[ViewPoints, str]:
@@ -281,7 +349,7 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
     from .layout import shown_in
 
     from .colour import hairline_on, to_lab
-    from .side_parts import EAR_OUTLINE, ear_box, eye_white, lip_region
+    from .side_parts import EAR_OUTLINE, ear_box
 
     h, w = image.shape[:2]
     fit, ctx = register_profile(image, front, front_height, where, mask, facing)
@@ -289,24 +357,35 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
     side = "R" if flip else "L"
     out = ViewPoints(mask=mask)
     out.extras["facing_found"] = ctx["facing"]
-    ipd = fit.scale * front.ipd_px
-    out.ipd_px = ipd
-    out.extras.update(profile_fit=fit, facing="right" if flip else "left")
     lm = front.extras["landmarks"]
     table = load_mapping(SIDE_MAP_FILE)
     depth_height = apply_mapping(lm[:, [2, 1]], table)
-    pts = {fp: fit.apply(zy[None])[0] for fp, zy in depth_height.items()}
-    # How well the mesh lies on the profile: a fit off by a tenth of the IPD is worth little.
-    quality = float(np.clip(1.0 - fit.cost / (0.1 * ipd), 0.2, 1.0)) * min(1.0, front.ipd_px / 60.0)
-    conf = {fp: quality * (0.75 - 0.04 * table[fp].fit_error_pct) for fp in pts}
     prof, back = row_extents(mask)
     rows = np.flatnonzero(np.isfinite(prof))
     y_top = float(rows[0])
     lab = to_lab(image)
     own = {fp: _own(fp, side) for fp in _EYE + _AROUND_EYE + _MOUTH + _JAW + EAR_OUTLINE + ("5.1",)}
+    pts = {fp: fit.apply(zy[None])[0] for fp, zy in depth_height.items()}
+    eye, lips = _seen_parts(lab, mask, pts, own, fit.scale * front.ipd_px)
+    ipd = fit.scale * front.ipd_px
+    if lips is not None and abs(lips["corner"][1] - pts[own["8.3"]][1]) > PART_HEIGHT_TOL * ipd:
+        # Lips that cannot hold the fit are further from it than the heights may disagree:
+        # not taken.
+        fit, pts, eye, lips = (_held_by_lips(lips, ipd, lab, ctx, front, front_height, depth_height, own)
+                               or (fit, pts, eye, None))
+    ipd = fit.scale * front.ipd_px
+    _check_not_cut(prof, y_top, pts, fit.scale, h / front_height, front, ipd, flip, where)
+    if eye is not None and abs(eye["back"][1] - pts[own["3.7"]][1]) > PART_HEIGHT_TOL * ipd:
+        # Further from the fitted face's eye than the photos' heights may disagree: not the
+        # eye (a lens's glare, a shadow); its points stay where the fit puts them.
+        eye = None
+    out.ipd_px = ipd
+    out.extras.update(profile_fit=fit, facing="right" if flip else "left")
+    # How well the mesh lies on the profile: a fit off by a tenth of the IPD is worth little.
+    quality = float(np.clip(1.0 - fit.cost / (0.1 * ipd), 0.2, 1.0)) * min(1.0, front.ipd_px / 60.0)
+    conf = {fp: quality * (0.75 - 0.04 * table[fp].fit_error_pct) for fp in pts}
     # The eye and the mouth, seen: their points move with them, the depth behind the profile
     # stretched (the face mesh's depth is off by a share, more for what lies deeper).
-    eye = eye_white(lab, mask, 0.5 * (pts[own["3.5"]] + pts[own["3.7"]]), ipd)
     if eye is not None:
         # The eye's own points move with it; those around it (lid fold, brow, cheekbone) by
         # the share of their depth behind the profile.
@@ -316,7 +395,6 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
         pts[own["3.7"]] = eye["back"]
         for fp in _EYE + _AROUND_EYE:
             conf[own[fp]] = min(0.8, conf[own[fp]] + 0.15)
-    lips = lip_region(lab, mask, pts[own["8.3"]], ipd)
     if lips is not None:
         _stretch(pts, [own[i] for i in _MOUTH], prof, pts[own["8.3"]], lips["corner"])
         pts[own["8.3"]] = lips["corner"]

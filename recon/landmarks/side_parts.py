@@ -120,25 +120,29 @@ def lip_region(lab: np.ndarray, mask: np.ndarray, centre: np.ndarray, ipd: float
         ``corner``: the lips' rearmost pixel (x, y), the corner of the mouth; ``area``.
         None when no patch clearly redder than the skin around it touches the profile.
     """
-    found = _skin_window(lab, mask, centre, 0.45 * ipd, 0.25 * ipd)
-    if found is None:
-        return None
-    rows, cols, win, inside, skin = found
-    red = inside & (win[..., 1] > skin[1] + 8.0)
-    lab_c, n = _components(red)
-    if n == 0:
-        return None
-    # The lips reach the profile: keep the patch nearest to the window's front.
-    best, best_x = None, np.inf
-    for k in range(1, n + 1):
-        ys, xs = np.nonzero(lab_c == k)
-        if len(xs) < (0.03 * ipd) ** 2 * 3:
-            continue
-        if xs.min() < best_x:
-            best, best_x = (ys, xs), xs.min()
-    if best is None:
-        return None
-    ys, xs = best
+    for _ in range(2):
+        found = _skin_window(lab, mask, centre, 0.45 * ipd, 0.25 * ipd)
+        if found is None:
+            return None
+        rows, cols, win, inside, skin = found
+        red = inside & (win[..., 1] > skin[1] + 8.0)
+        lab_c, n = _components(red)
+        # The lips reach the profile: keep the patch nearest to the window's front.
+        best, best_x = None, np.inf
+        for k in range(1, n + 1):
+            ys, xs = np.nonzero(lab_c == k)
+            if len(xs) < (0.03 * ipd) ** 2 * 3:
+                continue
+            if xs.min() < best_x:
+                best, best_x = (ys, xs), xs.min()
+        if best is None:
+            return None
+        ys, xs = best
+        # A patch the window's top or bottom cuts is looked at again, centred on it (the
+        # mouth was expected a little off).
+        if 0 < ys.min() and ys.max() < win.shape[0] - 1:
+            break
+        centre = np.array([centre[0], rows.start + 0.5 * (ys.min() + ys.max())])
     b = np.argmax(xs)
     return {"corner": np.array([xs[b] + cols.start, ys[b] + rows.start], float), "area": len(xs)}
 

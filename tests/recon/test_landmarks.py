@@ -114,6 +114,39 @@ def test_profile_fit_recovers_a_known_similarity():
     np.testing.assert_allclose(fit.inverse(fit.apply(want)), want, atol=1e-9)
 
 
+def test_lips_hold_a_profile_fit_the_top_of_the_head_misleads():
+    """The same drawn profile, but the front photo's top of the head read 120 px too high
+    (hair): the outline alone lets the face slide and shrink; one landmark's height held
+    where the lips show it brings the fit back."""
+    from recon.landmarks.profile import MIDLINE, ProfileFit, fit_profile
+
+    rng = np.random.default_rng(3)
+    lm = rng.normal(size=(N_LANDMARKS, 3)) * 5 + [500, 600, 0]
+    heights = np.linspace(300, 760, len(MIDLINE))
+    depth = np.interp(heights, [300, 420, 520, 560, 600, 650, 700, 760], [30, 40, 0, 45, 25, 40, 20, 70])
+    lm[list(MIDLINE), 2], lm[list(MIDLINE), 1] = depth, heights
+    truth = ProfileFit(1.1, np.radians(0.5), np.array([150.0, -20.0]), 0.0)
+    yy, xx = np.mgrid[:1100, :900]
+    curve = truth.apply(np.c_[np.interp(np.arange(150, 850), heights, depth, left=30, right=70),
+                              np.arange(150, 850)])
+    front_x = np.interp(yy, curve[:, 1], curve[:, 0])
+    top = truth.apply([[30.0, 120.0]])[0, 1]
+    mask = (xx >= front_x) & (xx < front_x + 380) & (yy >= top) & (yy < 1000)
+    want = truth.apply(lm[list(MIDLINE)][:, [2, 1]])
+
+    def error(fit):
+        return np.median(np.linalg.norm(fit.apply(lm[list(MIDLINE)][:, [2, 1]]) - want, axis=1))
+
+    assert error(fit_profile(mask, lm, 0.0, 100.0)) > 15.0  # misled (38 px here)
+    upper_lip = MIDLINE.index(0)
+    held = fit_profile(mask, lm, 0.0, 100.0, anchors=[(lm[0, [2, 1]], want[upper_lip, 1])])
+    assert error(held) < 5.0 and abs(held.scale - 1.1) < 0.05, held
+    # With the true top, holding a height where it already is changes nothing of note.
+    free = fit_profile(mask, lm, 120.0, 100.0)
+    same = fit_profile(mask, lm, 120.0, 100.0, anchors=[(lm[0, [2, 1]], want[upper_lip, 1])])
+    assert error(free) < 2.0 and error(same) < 2.0
+
+
 def test_hairline_is_a_sharp_change_not_shade():
     from recon.landmarks.colour import ColourModel, hairline_on
 
@@ -170,6 +203,9 @@ def test_eye_white_and_lips_in_a_side_view():
     assert eye is not None and eye["back"][0] == 159 and eye["front"][0] == 120
     lips = lip_region(lab, mask, np.array([95.0, 207.0]), 100.0)
     assert lips is not None and lips["corner"][0] == 100
+    # Looked for a little too high, the lips the window cuts are looked at again, whole.
+    cut = lip_region(lab, mask, np.array([95.0, 185.0]), 100.0)
+    assert cut is not None and cut["area"] == 15 * 41 and cut["corner"][0] == 100
     # Plain skin shows neither.
     plain = to_lab(np.full((300, 300, 3), (205, 160, 130), np.uint8))
     assert eye_white(plain, mask, np.array([145.0, 106.0]), 100.0) is None
@@ -283,6 +319,19 @@ def test_swapped_photos_are_refused():
         detect(EXAMPLE / "side.jpg", EXAMPLE / "front.jpg")
     with pytest.raises(InputError, match="side photo shows the face from the front"):
         detect(EXAMPLE / "front.jpg", EXAMPLE / "front.jpg")
+
+
+@needs_mediapipe
+def test_side_photo_that_cuts_the_face_off_is_refused():
+    from recon.landmarks import detect_images
+    from recon.photos import read_photo
+
+    front, side = read_photo(EXAMPLE / "front.jpg"), read_photo(EXAMPLE / "side.jpg")
+    # The example's nose tip is at x = 168: cut through the lips, nose gone, nose to the right.
+    cut = np.ascontiguousarray(side[:, 226:][:, ::-1])
+    with pytest.raises(InputError, match="runs off the photo's right edge") as e:
+        detect_images(front, cut, side_facing="right")
+    assert "background in front of the face" in str(e.value)
 
 
 # --- ground truth on another identity ---------------------------------------------------------
