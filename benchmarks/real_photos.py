@@ -5,7 +5,9 @@ of jpg, png, tif) it runs what a user runs, ``recon build FRONT SIDE -o OUT`` wi
 annotations, and measures the head against the photos (:mod:`recon.evaluate.real_photos`):
 
 - ``built`` (1, or 0 with the error quoted) and the wall time, split into detection, shape,
-  texture and export (``build_seconds``, medians);
+  texture and export (``build_seconds``, medians); ``built_without_side``: builds that left
+  the side photo out because its edge cuts the face off (built from the front photo alone;
+  their side figures are absent);
 - ``point_agreement_ipd_pct``: RMS distance of the detected points from the head's points
   projected by the fitted cameras, % of the interpupillary distance (IPD), per photo (and
   ``point_agreement_worst_*``, the four worst points); ``point_agreement_kept_ipd_pct``, the
@@ -140,7 +142,10 @@ def measure(name, front, side, other, out: Path, rec: Recogniser, texture_size: 
     found = read_fdp_json(out / "annotations.fdp.json")
     facing = found.metadata.get("landmarks", {}).get("side_facing", {}).get("facing", "left")
     images = {"front": read_photo(front), "side": read_photo(side)}
-    for view in ("front", "side"):
+    views = [v for v in ("front", "side") if v in found.views]
+    if "side" not in views:
+        fig["side_not_used"] = 1  # the build left the side photo out (its edge cuts the face off)
+    for view in views:
         measure_view(fig, pics, head, res.cameras[view].camera, images[view], found.views[view].points, view,
                      facing, rec, res.skin.lighting.get(view))
     # The same head and photo through a camera fitted as for a photo the build never saw
@@ -358,6 +363,8 @@ def main(argv=None) -> int:
 
     built = sum(f["built"] for f in results.values())
     print(f"built: {built} of {len(results)}")
+    print(f"built_without_side: {sum(f.get('side_not_used', 0) for f in results.values())} (the side photo cuts "
+          f"the face off: from the front photo alone)")
     pa = [f[k] for f in results.values() for k in ("point_agreement_front_ipd_pct", "point_agreement_side_ipd_pct")
           if k in f]
     print(f"point_agreement_ipd_pct: {np.median(pa) if pa else float('nan'):.3f}")

@@ -471,6 +471,10 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
         ``texture_from``), or neither with the photos: the points are then detected
         (:func:`recon.detection.detect_annotations`) and written to
         ``OUT/annotations.fdp.json``, kept when the build fails, for a person to correct.
+        A side photo whose edge cuts the face's profile off
+        (:class:`recon.landmarks.side.ProfileCutOff`) is then left out with a warning, and
+        the head built from the front photo alone (``side_photo_not_used`` in the
+        provenance).
     out_dir : path
         The bundle's folder (created). A previous bundle is replaced whole, only once the
         new one is complete (:func:`recon.publish.publish`); other files there are kept.
@@ -511,9 +515,21 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
             raise InputError("no photos and no annotations given", where="recon build",
                              fix="give the photos (recon build FRONT [SIDE] -o OUT: the points are detected), or "
                                  "--fdp F.fdp.json")
+        from .landmarks.side import ProfileCutOff
+
         say("detecting the feature points")
-        detected = shape_path = detect_annotations(front, side, Path(out_dir) / DETECTED_NAME,
-                                                   side_facing=side_facing)
+        try:
+            detected = shape_path = detect_annotations(front, side, Path(out_dir) / DETECTED_NAME,
+                                                       side_facing=side_facing)
+        except ProfileCutOff as e:
+            if side is None:
+                raise
+            # A profile with no face's outline gives no shape; the front photo alone still does.
+            say(f"warning: {e} -- the side photo is not used: the head is built from the front photo alone, "
+                f"its depth estimated")
+            provenance = {**(provenance or {}), "side_photo_not_used": str(e)}
+            side = None
+            detected = shape_path = detect_annotations(front, None, Path(out_dir) / DETECTED_NAME)
         meta = read_fdp_json(detected).metadata.get("landmarks", {})
         for warning in meta.get("warnings", []):
             say(f"warning: {warning}")

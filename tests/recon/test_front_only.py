@@ -227,3 +227,24 @@ def test_front_photo_alone_is_detected_and_built(tmp_path):
     assert len(found.views["front"].points) >= 60
     meta = json.loads(paths["fdp"].read_text())["metadata"]
     assert "estimated" in meta["fit"]["depth"]
+
+
+def test_side_photo_that_cuts_the_face_off_is_left_out_with_a_warning(tmp_path):
+    """recon build FRONT SIDE, the side photo's edge through the face: no profile to read;
+    the head is built from the front photo alone, saying so and why."""
+    pytest.importorskip("mediapipe")
+    from PIL import Image
+
+    from recon.photos import read_photo
+
+    side = read_photo(EXAMPLE_DIR / "side.jpg")
+    Image.fromarray(np.ascontiguousarray(side[:, 226:])).save(tmp_path / "cut.png")  # the nose gone
+    said = []
+    paths = run_build(EXAMPLE_DIR / "front.jpg", tmp_path / "cut.png", None, tmp_path / "out", texture_size=256,
+                      progress=said.append)
+    warning = [m for m in said if "the side photo is not used" in m]
+    assert warning and "runs off the photo's left edge" in warning[0] and "cut.png" in warning[0]
+    assert list(read_fdp_json(paths["annotations"]).views) == ["front"]
+    meta = json.loads(paths["fdp"].read_text())["metadata"]
+    assert "estimated" in meta["fit"]["depth"]
+    assert "runs off" in meta["provenance"]["side_photo_not_used"]
