@@ -86,15 +86,16 @@ def test_table_refuses_bad_rows():
 
 # --- the readers, on drawn images -------------------------------------------------------------
 
-def test_profile_fit_recovers_a_known_similarity():
+def _drawn_profile():
     """A silhouette whose face-side outline is the midline landmarks' own (depth, height)
-    curve, scaled, rolled and shifted: the fit finds that similarity."""
-    from recon.landmarks.profile import MIDLINE, ProfileFit, fit_profile
+    curve, scaled, rolled and shifted: (landmarks, the similarity, the mask, where the
+    midline landmarks truly lie). The face's profile in the front photo's pixels runs from
+    row 300 to 760 (forehead, nose, lips, chin; depth smaller forward), the top of the
+    head at row 120."""
+    from recon.landmarks.profile import MIDLINE, ProfileFit
 
     rng = np.random.default_rng(3)
     lm = rng.normal(size=(N_LANDMARKS, 3)) * 5 + [500, 600, 0]
-    # A face's profile in the front photo's pixels: forehead, nose, lips, chin (depth
-    # smaller forward), from row 300 to 760; the top of the head at row 120.
     heights = np.linspace(300, 760, len(MIDLINE))
     depth = np.interp(heights, [300, 420, 520, 560, 600, 650, 700, 760],
                       [30, 40, 0, 45, 25, 40, 20, 70])
@@ -106,33 +107,27 @@ def test_profile_fit_recovers_a_known_similarity():
     front_x = np.interp(yy, curve[:, 1], curve[:, 0])
     top = truth.apply([[30.0, 120.0]])[0, 1]
     mask = (xx >= front_x) & (xx < front_x + 380) & (yy >= top) & (yy < 1000)
+    return lm, truth, mask, truth.apply(lm[list(MIDLINE)][:, [2, 1]])
+
+
+def test_profile_fit_recovers_a_known_similarity():
+    from recon.landmarks.profile import MIDLINE, fit_profile
+
+    lm, truth, mask, want = _drawn_profile()
     fit = fit_profile(mask, lm, 120.0, 100.0, scale_guess=1.0)
     uv = fit.apply(lm[list(MIDLINE)][:, [2, 1]])
-    want = truth.apply(lm[list(MIDLINE)][:, [2, 1]])
     assert np.median(np.linalg.norm(uv - want, axis=1)) < 2.0, (fit, truth)
     assert abs(fit.scale - 1.1) < 0.02 and fit.cost < 1.5
     np.testing.assert_allclose(fit.inverse(fit.apply(want)), want, atol=1e-9)
 
 
 def test_lips_hold_a_profile_fit_the_top_of_the_head_misleads():
-    """The same drawn profile, but the front photo's top of the head read 120 px too high
+    """The drawn profile, but the front photo's top of the head read 120 px too high
     (hair): the outline alone lets the face slide and shrink; one landmark's height held
     where the lips show it brings the fit back."""
-    from recon.landmarks.profile import MIDLINE, ProfileFit, fit_profile
+    from recon.landmarks.profile import MIDLINE, fit_profile
 
-    rng = np.random.default_rng(3)
-    lm = rng.normal(size=(N_LANDMARKS, 3)) * 5 + [500, 600, 0]
-    heights = np.linspace(300, 760, len(MIDLINE))
-    depth = np.interp(heights, [300, 420, 520, 560, 600, 650, 700, 760], [30, 40, 0, 45, 25, 40, 20, 70])
-    lm[list(MIDLINE), 2], lm[list(MIDLINE), 1] = depth, heights
-    truth = ProfileFit(1.1, np.radians(0.5), np.array([150.0, -20.0]), 0.0)
-    yy, xx = np.mgrid[:1100, :900]
-    curve = truth.apply(np.c_[np.interp(np.arange(150, 850), heights, depth, left=30, right=70),
-                              np.arange(150, 850)])
-    front_x = np.interp(yy, curve[:, 1], curve[:, 0])
-    top = truth.apply([[30.0, 120.0]])[0, 1]
-    mask = (xx >= front_x) & (xx < front_x + 380) & (yy >= top) & (yy < 1000)
-    want = truth.apply(lm[list(MIDLINE)][:, [2, 1]])
+    lm, _, mask, want = _drawn_profile()
 
     def error(fit):
         return np.median(np.linalg.norm(fit.apply(lm[list(MIDLINE)][:, [2, 1]]) - want, axis=1))
