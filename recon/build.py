@@ -40,7 +40,7 @@ from .shape.calibrate import DEFAULT_IPD_MM
 from .texture.cameras import FittedCamera, check_view_cameras, fit_camera, fit_view_camera
 from .shape.fit import attach_photo_sizes, fit_head, fit_head_front, has_side, require_views
 from .publish import publish
-from .detection import DETECTED_NAME, correction_hint, detect_annotations
+from .detection import DETECTED_NAME, correction_hint, detect_for_build
 from .photos import (MAX_PHOTO_PIXELS, check_photo, photo_focal_px, photo_scale, photo_size, photos_focal_px,
                      read_photo, view_at_size)
 
@@ -515,21 +515,11 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
             raise InputError("no photos and no annotations given", where="recon build",
                              fix="give the photos (recon build FRONT [SIDE] -o OUT: the points are detected), or "
                                  "--fdp F.fdp.json")
-        from .landmarks.side import ProfileCutOff
-
         say("detecting the feature points")
-        try:
-            detected = shape_path = detect_annotations(front, side, Path(out_dir) / DETECTED_NAME,
-                                                       side_facing=side_facing)
-        except ProfileCutOff as e:
-            if side is None:
-                raise
-            # A profile with no face's outline gives no shape; the front photo alone still does.
-            say(f"warning: {e} -- the side photo is not used: the head is built from the front photo alone, "
-                f"its depth estimated")
-            provenance = {**(provenance or {}), "side_photo_not_used": str(e)}
-            side = None
-            detected = shape_path = detect_annotations(front, None, Path(out_dir) / DETECTED_NAME)
+        detected, side, unused = detect_for_build(front, side, Path(out_dir) / DETECTED_NAME, side_facing, say)
+        shape_path = detected
+        if unused is not None:
+            provenance = {**(provenance or {}), "side_photo_not_used": unused}
         meta = read_fdp_json(detected).metadata.get("landmarks", {})
         for warning in meta.get("warnings", []):
             say(f"warning: {warning}")

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from mpeg4.errors import InputError
 
-__all__ = ["DETECTED_NAME", "detect_annotations", "correction_hint"]
+__all__ = ["DETECTED_NAME", "detect_annotations", "detect_for_build", "correction_hint"]
 
 
 #: Where ``recon build`` without annotations writes the points it detected, in its output.
@@ -86,6 +86,33 @@ def detect_annotations(front: str | os.PathLike, side: str | os.PathLike | None,
     path.parent.mkdir(parents=True, exist_ok=True)
     write_fdp_json(path, found)
     return path
+
+
+def detect_for_build(front, side, path, side_facing: str | None = None,
+                     say: Callable[[str], None] = lambda m: None) -> tuple[Path, object, str | None]:
+    """:func:`detect_annotations` for ``recon build``: a side photo whose edge cuts the
+    face's profile off (:class:`recon.landmarks.side.ProfileCutOff`) gives no shape, so it
+    is left out with a warning and the points detected on the front photo alone.
+
+    Returns
+    -------
+    path : Path
+        The annotations written.
+    side : path or None
+        The side photo still used (None once left out).
+    unused : str or None
+        Why the side photo was left out (None when it was not).
+    """
+    from .landmarks.side import ProfileCutOff
+
+    try:
+        return detect_annotations(front, side, path, side_facing=side_facing), side, None
+    except ProfileCutOff as e:
+        if side is None:
+            raise
+        say(f"warning: {e} -- the side photo is not used: the head is built from the front photo alone, "
+            f"its depth estimated")
+        return detect_annotations(front, None, path), None, str(e)
 
 
 def correction_hint(front, side, fdp_path) -> str:
