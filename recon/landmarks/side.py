@@ -270,6 +270,11 @@ def _stretch(points: dict, ids, prof: np.ndarray, anchor_pred: np.ndarray, ancho
     return k
 
 
+def _placed(fit: ProfileFit, depth_height: dict) -> dict:
+    """Every feature point where ``fit`` carries its face mesh (depth, height)."""
+    return {fp: fit.apply(zy[None])[0] for fp, zy in depth_height.items()}
+
+
 def _seen_parts(lab: np.ndarray, mask: np.ndarray, pts: dict, own: dict, ipd: float):
     """The eye's white and the lips (:mod:`recon.landmarks.side_parts`) looked for where
     the points ``pts`` put them; each None when not seen."""
@@ -295,7 +300,7 @@ def _held_by_lips(lips: dict, ipd: float, lab: np.ndarray, ctx: dict, front: Vie
     fit = fit_profile(mask, front.extras["landmarks"], front.points["11.5"][1], front.ipd_px,
                       mask.shape[0] / front_height, ctx["distance"],
                       anchors=[(depth_height[own["8.3"]], lips["corner"][1])])
-    pts = {fp: fit.apply(zy[None])[0] for fp, zy in depth_height.items()}
+    pts = _placed(fit, depth_height)
     eye, found = _seen_parts(lab, mask, pts, own, fit.scale * front.ipd_px)
     if found is None or abs(found["corner"][1] - lips["corner"][1]) > PART_HEIGHT_TOL * fit.scale * front.ipd_px:
         return None
@@ -365,9 +370,9 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
     y_top = float(rows[0])
     lab = to_lab(image)
     own = {fp: _own(fp, side) for fp in _EYE + _AROUND_EYE + _MOUTH + _JAW + EAR_OUTLINE + ("5.1",)}
-    pts = {fp: fit.apply(zy[None])[0] for fp, zy in depth_height.items()}
-    eye, lips = _seen_parts(lab, mask, pts, own, fit.scale * front.ipd_px)
+    pts = _placed(fit, depth_height)
     ipd = fit.scale * front.ipd_px
+    eye, lips = _seen_parts(lab, mask, pts, own, ipd)
     if lips is not None and abs(lips["corner"][1] - pts[own["8.3"]][1]) > PART_HEIGHT_TOL * ipd:
         # Lips that cannot hold the fit are further from it than the heights may disagree:
         # not taken.
