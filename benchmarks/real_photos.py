@@ -138,6 +138,7 @@ def measure(name, front, side, other, out: Path, rec: Recogniser, texture_size: 
     # How far each photo's pixels may land from their skin (the view lines weigh them by it).
     for view, r in zip(("front", "side"), res.skin.registration_m):
         fig[f"registration_{view}_mm"] = round(1000 * float(r), 2)
+    fig["glasses"] = ",".join(res.skin.glasses) or "none"  # the photos whose frames were inpainted
     head = res.head
     found = read_fdp_json(out / "annotations.fdp.json")
     facing = found.metadata.get("landmarks", {}).get("side_facing", {}).get("facing", "left")
@@ -257,6 +258,7 @@ def measure_front_only(name, front, side, out: Path, rec: Recogniser, texture_si
         return fig, pics
     fig.update(built=1, seconds=round(time.perf_counter() - t0, 1))
     res = built[0]
+    fig["glasses"] = ",".join(res.skin.glasses) or "none"
     head = res.head
     fit = head.metadata["fit"]
     fig["focal_from"] = fit["focal_from"]

@@ -20,7 +20,7 @@ from mpeg4.render import Camera, vertex_normals
 
 from .delight import fit_mask
 
-__all__ = ["SKIN_CHI2", "skin_model", "skin_pixels", "clothes_mask", "fill_from_above", "remove_clothes"]
+__all__ = ["SKIN_CHI2", "skin_model", "face_skin_model", "skin_pixels", "clothes_mask", "fill_from_above", "remove_clothes"]
 
 #: Squared Mahalanobis distance (3 degrees of freedom) beyond which a colour is not skin:
 #: the 99.9th percentile of the chi-squared law, so that the skin itself is almost never
@@ -179,6 +179,24 @@ def fill_from_above(photo: np.ndarray, mask: np.ndarray, skin: np.ndarray, band_
     return out
 
 
+def face_skin_model(head: Head, photo: np.ndarray, camera: Camera, seen: np.ndarray,
+                    normals: np.ndarray | None = None,
+                    skin: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+    """:func:`skin_model` of a photo from the face of the head fitted to it: the skin
+    vertices (``skin``, :func:`recon.texture.delight.fit_mask` when None) the camera sees
+    (``seen``, (N,) bool), above the chin (2.1) and facing the camera within 45° — not the
+    neck (it may be under a collar), nor the rims and sideburns seen edge-on. None as
+    :func:`skin_model`."""
+    v = head.skin.vertices
+    normals = vertex_normals(v, head.skin.triangles) if normals is None else normals
+    skin = fit_mask(head) > 0 if skin is None else skin
+    facing = np.sum(normals * camera.towards(v), axis=1) >= np.cos(np.radians(45.0))
+    face = skin & seen & facing
+    if "2.1" in head.feature_points:
+        face &= v[:, 1] > head.fp_position("2.1")[1]
+    return skin_model(photo, camera.project(v[face]))
+
+
 def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera: Camera,
                    seen: np.ndarray, normals: np.ndarray | None = None,
                    skin: np.ndarray | None = None) -> tuple[np.ndarray, float]:
@@ -212,14 +230,7 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
     pts = head.fp_positions()
     if "2.1" not in pts or "9.3" not in pts:
         return photo, 0.0
-    v = head.skin.vertices
-    normals = vertex_normals(v, head.skin.triangles) if normals is None else normals
-    skin = fit_mask(head) > 0 if skin is None else skin
-    # The skin model from the face above the chin, facing the camera within 45°: not the
-    # neck (it may be under the collar), nor the rims and sideburns seen edge-on.
-    facing = np.sum(normals * camera.towards(v), axis=1) >= np.cos(np.radians(45.0))
-    face = skin & seen & facing & (v[:, 1] > pts["2.1"][1])
-    model = skin_model(photo, camera.project(v[face]))
+    model = face_skin_model(head, photo, camera, seen, normals, skin)
     if model is None:
         return photo, 0.0
     chin, nose = camera.project(np.array([pts["2.1"], pts["9.3"]]))

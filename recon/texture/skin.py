@@ -31,8 +31,9 @@ The photos' cameras come from the head's 3D feature points and the marked pixels
 (:mod:`recon.texture.cameras`); what the head covers in each photo from rendering it
 (:mod:`mpeg4.render`), which also tells which vertices each camera sees. Once the light
 is taken out, the side photo is brought to the front photo's colour
-(:mod:`recon.texture.exposure`) and a shirt over the neck is replaced by the skin above
-its collar (:mod:`recon.texture.clothes`).
+(:mod:`recon.texture.exposure`), a shirt over the neck is replaced by the skin above
+its collar (:mod:`recon.texture.clothes`) and the frames of glasses are inpainted out of the
+skin (:mod:`recon.texture.glasses`).
 
 References
 ----------
@@ -61,6 +62,7 @@ from .cameras import FittedCamera
 from .clothes import remove_clothes
 from .delight import fit_mask
 from .exposure import apply_gain, side_gain
+from .glasses import remove_glasses
 from .regions import (FOLD, FRONT, HIDDEN, MIRRORED, REGIONS, SEEN, _depth, _folds, _head_meshes, _seen_from_around,
                       _seen_in_box, _visible, feature_line, feature_polygon, line_depth, split_by_region,
                       triangle_regions, vertex_regions, view_line)
@@ -109,6 +111,8 @@ class SkinTexture:
         How far the front and the side photo's pixels may land from the skin they belong to
         (:meth:`recon.texture.cameras.FittedCamera.registration_m`), metres: the view lines
         weigh the photos by it. NaN with a front photo alone.
+    glasses : dict of str to recon.texture.glasses.Glasses
+        The frames of glasses inpainted out of each photo (empty: no glasses).
     """
 
     texture: np.ndarray
@@ -125,6 +129,7 @@ class SkinTexture:
     lighting: dict = field(repr=False, default_factory=dict)
     side_gain: np.ndarray = field(default_factory=lambda: np.ones(3))
     registration_m: tuple[float, float] = (float("nan"), float("nan"))
+    glasses: dict = field(repr=False, default_factory=dict)
 
 
 def photo_background(photo: np.ndarray, tol: float = 14.0, border: int = 6) -> np.ndarray:
@@ -343,6 +348,13 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
             say(f"the {key} photo shows clothes over {100 * covered:.0f} % of the head: filled from the neck's "
                 f"skin above the collar")
 
+    # The frames of glasses, out of the skin (the lenses cannot be: their tint stays).
+    photos, glasses = remove_glasses(head, photos, {k: cams[k].camera for k in photos}, seen, skin_normals,
+                                     skin_to_fit > 0)
+    if glasses:
+        say("the photos show glasses: their frames are inpainted from the skin around them; the lenses' tint "
+            "and glare stay in the texture")
+
     say(f"warping the photos into a {size}x{size} texture")
     t2 = time.perf_counter()
     fill = {key: _fill_outside(photos[key], head_masks[key]) for key in photos}
@@ -373,7 +385,7 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     times["blend"] = time.perf_counter() - t3
     times["total"] = time.perf_counter() - t0
     return SkinTexture(texture, uv, source, tris, tregion, region, cams, layers, masks, times, seen_sign, lighting,
-                       gain, registration)
+                       gain, registration, glasses)
 
 
 def _side_gain(V: np.ndarray, n: np.ndarray, skin: np.ndarray, photos: dict, seen: dict, front: FittedCamera,
