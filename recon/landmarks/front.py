@@ -256,6 +256,10 @@ def ear_from_outline(mask: np.ndarray, sign: float, centre_x: float, top_band: t
             "region": region, "bulge": bulge}
 
 
+#: The least share of an ear's pixels (in a front photo's outline) that have the skin's colour.
+EAR_SKIN = 1.0 / 3.0
+
+
 def _ears(front: ViewPoints, lab: np.ndarray, lm: np.ndarray, pts: dict, skin: ColourModel,
           hair: ColourModel | None) -> None:
     """10.x on a front photo: the ears where they stand out of the head's outline
@@ -274,7 +278,11 @@ def _ears(front: ViewPoints, lab: np.ndarray, lm: np.ndarray, pts: dict, skin: C
         if ear is not None:
             ys, xs = np.nonzero(ear["region"])
             pick = np.linspace(0, len(ys) - 1, min(len(ys), 400)).astype(int)
-            if hair_share(lab_at(lab, np.c_[xs[pick], ys[pick]]), skin, hair) > 0.5:
+            colours = lab_at(lab, np.c_[xs[pick], ys[pick]])
+            # An ear is skin: at least a third of it the skin's colour (its folds' shade and
+            # hair over its rim are the rest). Loose strands over the backdrop are neither
+            # hair nor skin by colour, and bulge out of the outline as an ear would.
+            if hair_share(colours, skin, hair) > 0.5 or np.mean(skin.distance2(colours) < FAR) < EAR_SKIN:
                 ear = None
         if ear is not None:
             conf = float(np.clip(0.4 + ear["bulge"] / ipd, 0.4, 0.7))
