@@ -329,6 +329,29 @@ def test_side_photo_that_cuts_the_face_off_is_refused():
     assert "background in front of the face" in str(e.value)
 
 
+PAIRS = ROOT.parent / "shared" / "data" / "real_photos" / "pairs"
+
+
+@needs_mediapipe
+@pytest.mark.skipif(not (PAIRS / "meds_s001").exists(), reason=f"the real photo pairs are not there ({PAIRS})")
+def test_strands_of_hair_over_the_backdrop_are_no_ear():
+    """meds_s001 wears her hair over her right ear; loose strands hang over the backdrop
+    beside her cheek, bulging out of the outline as an ear would. They are neither skin
+    nor the hair's colour: the ear there is placed by the face's proportions (brows to
+    the nose's base), not on the strands down to her jaw."""
+    from recon.landmarks.front import detect_front
+    from recon.photos import read_photo
+
+    found = detect_front(read_photo(PAIRS / "meds_s001" / "front.jpg"))
+    pts = found.points
+    assert found.source["10.6"] == found.source["10.8"] == "rule"
+    ipd = _ipd(pts)
+    # The lobe at the nose's base (as the rule puts it), well above the mouth's corners.
+    assert pts["10.6"][1] < pts["8.4"][1] - 0.2 * ipd
+    # Her left ear shows and is found in the outline.
+    assert found.source["10.1"] == "silhouette"
+
+
 # --- ground truth on another identity ---------------------------------------------------------
 
 @needs_mediapipe
