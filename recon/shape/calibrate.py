@@ -229,11 +229,23 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
 PRIOR_SLACK = {**{i: 0.012 for i in ("11.4", "11.5", "11.6")},
                **{i: 0.015 for i in FP_IDS if FEATURE_POINTS[i].group == 10}}
 
+#: An ear's points, each side: they move together (:data:`PRIOR_SLACK` bounds the ear's
+#: shift), and each keeps within :data:`EAR_SHAPE_SLACK` of where that shift puts the
+#: generic ear's. An ear's shape varies less than where it sits on the head; points pulled
+#: apart by a turned head or a guess on the hair would make a spike of the ear.
+EARS = (("10.1", "10.3", "10.5", "10.7", "10.9"), ("10.2", "10.4", "10.6", "10.8", "10.10"))
+
+#: How far (metres) an unreviewed ear point may lie from the generic ear moved as a whole:
+#: about the spread of how far ears stand out and how long they are.
+EAR_SHAPE_SLACK = 0.006
+
 
 def _skull_prior(cal: Calibration, generic: Head, under_hair: Collection[str] = ()) -> None:
     """Bring unreviewed skull and ear points (:data:`PRIOR_SLACK`) within their bound of the
-    generic head carried by the face's points, recording those moved as ``"skull prior"``;
-    the skull points in ``under_hair`` go under the hair (:mod:`recon.shape.hair`)."""
+    generic head carried by the face's points, recording those moved as ``"skull prior"``:
+    each ear moved as a whole (the median of its points' offsets, bounded), its points
+    within :data:`EAR_SHAPE_SLACK` of that; the skull points in ``under_hair`` go under the
+    hair (:mod:`recon.shape.hair`)."""
     g = {i: generic.fp_position(i) for i in generic.feature_points}
     face = [i for i in FP_IDS if FEATURE_POINTS[i].group not in (10, 11) and i in g
             and cal.source.get(i) not in (None, "generic")]
@@ -241,8 +253,24 @@ def _skull_prior(cal: Calibration, generic: Head, under_hair: Collection[str] = 
         return
     guess = _generic_guess(g, face, np.array([cal.points[i] for i in face]))
     normals = skull_normals(generic) if under_hair else {}
+    ears = set()
+    for ear in EARS:
+        ids = [i for i in ear if i in guess and i in cal.points and cal.source.get(i) != "generic"]
+        if not ids:
+            continue
+        ears.update(ids)
+        d = np.array([cal.points[i] - guess[i] for i in ids])
+        shift = np.median(d, axis=0)
+        n = float(np.linalg.norm(shift))
+        shift *= min(1.0, PRIOR_SLACK[ids[0]] / max(n, 1e-12))
+        for i, di in zip(ids, d - shift):
+            m = float(np.linalg.norm(di))
+            p = guess[i] + shift + di * min(1.0, EAR_SHAPE_SLACK / max(m, 1e-12))
+            if np.linalg.norm(p - cal.points[i]) > 1e-6:
+                cal.points[i] = p
+                cal.source[i] = "skull prior"
     for i, slack in PRIOR_SLACK.items():
-        if i not in guess or cal.source.get(i) == "generic":
+        if i not in guess or cal.source.get(i) == "generic" or i in ears:
             continue
         d = cal.points[i] - guess[i]
         if i in under_hair and i in normals:

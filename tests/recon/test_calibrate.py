@@ -230,3 +230,39 @@ def test_unreviewed_skull_points_on_the_hair_come_back_to_the_skull():
     cal = calibrate(views["front"], side, generic, **cam, drop_outliers=True)
     assert cal.source["11.6"] == "skull prior"
     assert np.linalg.norm(cal.points["11.6"] - ref.points["11.6"]) < 2 * PRIOR_SLACK["11.6"]
+
+
+def test_an_unreviewed_ear_keeps_its_shape():
+    """Front ear points pulled apart (the top on the hair, the attachment on the cheek, as on
+    a turned head) would make a spike of the ear: the ear moves as a whole and each point
+    stays within EAR_SHAPE_SLACK of the generic ear moved with it."""
+    from mpeg4.generic_head import load_generic_head
+    from recon.shape.calibrate import EAR_SHAPE_SLACK, EARS
+
+    generic = load_generic_head()
+    _, views, size = _example_views()
+    cam = dict(front_size=size["front"], side_size=size["side"], focal_px=FOCAL)
+    front = dict(views["front"])
+    ipd = float(np.linalg.norm(front["3.5"] - front["3.6"]))
+    out = 1.0 if front["10.1"][0] > front["9.3"][0] else -1.0  # the face's left ear on the image's right
+    front["10.1"] = front["10.1"] + [out * 0.35 * ipd, 0.0]
+    front["10.9"] = front["10.9"] - [out * 0.2 * ipd, 0.0]
+    cal = calibrate(front, views["side"], generic, **cam, drop_outliers=True, height_tol_mm=np.inf)
+    ids = [i for i in EARS[0] if i in cal.points]
+    assert {"10.1", "10.9"} <= set(ids)
+    assert cal.source["10.1"] == "skull prior"
+
+    def shape(points):
+        p = np.array([points[i] for i in ids])
+        return p - p.mean(axis=0)
+
+    g = {i: generic.fp_position(i) for i in ids}
+    # Scaled to this face, the generic ear's shape; the calibrated ear's differs from it by
+    # the per-point bound at most (and the scale the face's points give the head, a few %).
+    scale = (np.linalg.norm(cal.points["3.5"] - cal.points["3.6"])
+             / np.linalg.norm(generic.fp_position("3.5") - generic.fp_position("3.6")))
+    err = np.linalg.norm(shape(cal.points) - scale * shape(g), axis=1)
+    assert err.max() < 2 * EAR_SHAPE_SLACK + 0.004, err
+    # Point by point, the top stood out from the attachment by 36 mm here (generic: 11).
+    spread = np.linalg.norm(cal.points["10.1"] - cal.points["10.9"])
+    assert spread < scale * np.linalg.norm(g["10.1"] - g["10.9"]) + 2 * EAR_SHAPE_SLACK
