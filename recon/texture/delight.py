@@ -19,8 +19,10 @@ the photo by the fitted shading.
   shadows falls to the robust weights. Photos are used as they are encoded: a power-law
   encoding keeps albedo × shading a product, so the division holds either way.
 * The fit knows only the scale of albedo × light intensity, not each. The shading is
-  scaled so that its mean over the fitted skin is 1: the albedo keeps the photo's mean skin
-  colour, and only the light's variation over the face is taken out. (Scaling it to its
+  scaled so that the albedo's median brightness over the fitted skin is the photo's: the
+  albedo keeps the photo's skin colour, and only the light's variation over the face is
+  taken out. (A shading of mean 1 keeps it only under an even light: under a strong one
+  the lit cheeks came out dark and grey, 10 ΔE off the photo. Scaling it to its
   brightest value instead would make the albedo the colour facing the light squarely, but
   one bright spot — a highlight on glasses, a shiny forehead — then brightens the whole
   face: a dark skin came out pale.)
@@ -82,7 +84,8 @@ class Lighting:
         The brightest fitted luma over the fitted skin.
     shading : (H, W) float32
         The shading at every pixel of the head (1 elsewhere): the harmonics over ``peak``,
-        clamped to [:data:`MIN_SHADING`, 1.25], then divided by ``mean``.
+        clamped to [:data:`MIN_SHADING`, 1.25], then scaled so that the photo's skin
+        divided by it keeps its median brightness.
     mean : float
         The clamped shading's mean over the fitted skin, as a share of ``peak``.
     trust : (H, W) bool
@@ -312,7 +315,16 @@ def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, 
     trust = head_mask & (full >= MIN_SHADING)
     clamped = np.clip(full, MIN_SHADING, 1.25)
     mean = float(clamped[sub][skin].mean()) if skin.any() else 1.0
-    shading = np.where(head_mask, clamped / mean, np.float32(1.0)).astype(np.float32)
+    # Scaled so that the albedo keeps the photo's median skin brightness where the face is
+    # seen squarely (the skin the fit kept that faces the camera within 45°: the cheeks and
+    # forehead, not the sides and the neck seen edge-on): a shading whose mean is 1 does so
+    # only under an even light, and under a strong one the lit cheeks come out dark and grey.
+    kept = w > 0
+    facing = kept & (nz[sub][sel] > np.cos(np.radians(45.0)))
+    kept = facing if facing.sum() >= 100 else kept
+    ratio = y[kept] / clamped[sub][sel][kept]
+    level = float(np.median(ratio) / np.median(y[kept])) if kept.any() else 1.0 / mean
+    shading = np.where(head_mask, clamped * level, np.float32(1.0)).astype(np.float32)
     return Lighting(c, peak, shading, trust, int(sel.sum()), float(np.mean(w > 0)), mean)
 
 

@@ -37,11 +37,15 @@ def test_fitted_shading_follows_any_light_and_ignores_blotches(light):
     ratio = lit.shading[face] / shade[face]
     assert np.std(ratio) / np.mean(ratio) < 0.06, np.std(ratio) / np.mean(ratio)
     assert lit.inlier_share > 0.85  # the blotches (8 %) fall to the robust weights
-    # The scale: the shading's mean over the fitted skin is 1, so the albedo keeps the
-    # photo's mean colour; its brightest is the true shading's peak over that mean.
-    assert abs(lit.shading[mask & (shade > 0)].mean() - 1.0) < 0.1
-    assert abs(np.mean(ratio) * lit.mean - 1.0) < 0.1
-    assert lit.shading[mask].min() >= MIN_SHADING / lit.mean - 1e-6 and np.all(lit.shading[~mask] == 1.0)
+    # The scale: the albedo keeps the photo's median skin brightness where the skin faces
+    # the camera within 45° (over the skin the fit kept: not the blotches, every third
+    # pixel each way; here over all of it).
+    luma = photo.astype(float) @ np.array([0.299, 0.587, 0.114])
+    skin = mask & ~blotch & (n[..., 2] > np.cos(np.radians(45.0)))
+    assert abs(np.median(luma[skin] / lit.shading[skin]) / np.median(luma[skin]) - 1.0) < 0.03
+    # Held at MIN_SHADING of its brightest (1.25 at most) where the light grazes; 1 off the head.
+    assert lit.shading[mask].min() / lit.shading[mask].max() >= MIN_SHADING / 1.25 - 1e-6
+    assert np.all(lit.shading[~mask] == 1.0)
     # Dividing it out flattens the light: the albedo varies far less than the photo.
     flat = photo[face].astype(float).mean(axis=1) / lit.shading[face]
     assert np.std(flat) / np.mean(flat) < 0.5 * np.std(photo[face].astype(float).mean(axis=1)) / \
