@@ -316,6 +316,7 @@ def _finish(head, skin, pair, cams, atlas, texture_size, keep_lighting, times, t
         texture_lighting="photo" if keep_lighting else "albedo",
         texture_side_gain=[round(float(g), 4) for g in skin.side_gain],
         texture_registration_mm=[round(1000 * float(r), 2) if np.isfinite(r) else None for r in skin.registration_m],
+        texture_glasses=sorted(skin.glasses),  # the photos whose frames of glasses were inpainted
         texture_regions=out.metadata.get("texture", {}).get("regions")))
     times["total"] = time.perf_counter() - t0
     return BuildResult(out, skin.cameras, skin, times)

@@ -7,10 +7,14 @@ head animates. Here the frames are looked for where glasses sit (the skin a band
 the eyes' height, from the nose back to the ears) as what is both *not skin* by the face's
 own colour model (:func:`recon.texture.clothes.skin_model`) and *thin*: what a
 morphological opening (a disk a few hundredths of the eye separation across) removes.
-Lens tint, brows and shadows are blobs the opening keeps; a crease or a stray hair is a
-short line. What is left is kept as frames only when it is long — measured by its
-skeleton, in eye separations — and then inpainted (Telea's fast marching method, OpenCV)
-from the skin around it. The lenses themselves cannot be taken out: glare and tint stay.
+A frame the skin's own colour (gold on brown skin) is found as what stands out from the
+median of the pixels around it. Lens tint and shadows are blobs the opening keeps; a
+crease or a stray hair is a short line; the eye openings and the brows are left out. What
+is left is taken for frames only when, over both photos of a person, it is long (its
+skeleton, in eye separations) and rings the eyes (a line in a good share of the
+directions round each eye, :func:`wears_glasses`); then it is inpainted (Telea's fast
+marching method, OpenCV) from the skin around it. The lenses themselves cannot be taken
+out: glare and tint stay.
 
 References
 ----------

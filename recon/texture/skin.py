@@ -352,8 +352,8 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     photos, glasses = remove_glasses(head, photos, {k: cams[k].camera for k in photos}, seen, skin_normals,
                                      skin_to_fit > 0)
     if glasses:
-        say("the photos show glasses: their frames are inpainted from the skin around them; the lenses' tint "
-            "and glare stay in the texture")
+        say("warning: the photos show glasses: their frames are inpainted from the skin around them, but the "
+            "lenses' tint and glare stay in the texture (photos without glasses give a cleaner one)")
 
     say(f"warping the photos into a {size}x{size} texture")
     t2 = time.perf_counter()

@@ -186,6 +186,7 @@ def test_a_side_photo_with_another_exposure_gives_the_same_texture(example):
     after = r.skin.layers[1][used].mean(axis=0)
     assert np.abs(after - before).max() < 2.0, (before, after)
     assert r.head.metadata["build"]["texture_side_gain"] == pytest.approx(list(r.skin.side_gain), abs=1e-4)
+    assert r.head.metadata["build"]["texture_glasses"] == [] and r.skin.glasses == {}  # the example wears none
 
 
 def test_both_blends_are_the_same_spline(example):
