@@ -19,9 +19,9 @@ the photo by the fitted shading.
   shadows falls to the robust weights. Photos are used as they are encoded: a power-law
   encoding keeps albedo × shading a product, so the division holds either way.
 * The fit knows only the scale of albedo × light intensity, not each. The shading is
-  scaled so that the albedo's median brightness over the fitted skin is the photo's: the
-  albedo keeps the photo's skin colour, and only the light's variation over the face is
-  taken out. (A shading of mean 1 keeps it only under an even light: under a strong one
+  scaled so that the albedo's median brightness over the fitted skin that faces the camera
+  (within 45°: the cheeks, the forehead) is the photo's: the albedo keeps the photo's skin
+  colour, and only the light's variation over the face is taken out. (A shading of mean 1 keeps it only under an even light: under a strong one
   the lit cheeks came out dark and grey, 10 ΔE off the photo. Scaling it to its
   brightest value instead would make the albedo the colour facing the light squarely, but
   one bright spot — a highlight on glasses, a shiny forehead — then brightens the whole
@@ -84,8 +84,8 @@ class Lighting:
         The brightest fitted luma over the fitted skin.
     shading : (H, W) float32
         The shading at every pixel of the head (1 elsewhere): the harmonics over ``peak``,
-        clamped to [:data:`MIN_SHADING`, 1.25], then scaled so that the photo's skin
-        divided by it keeps its median brightness.
+        clamped to [:data:`MIN_SHADING`, 1.25], then scaled so that the photo's skin facing
+        the camera divided by it keeps its median brightness.
     mean : float
         The clamped shading's mean over the fitted skin, as a share of ``peak``.
     trust : (H, W) bool
