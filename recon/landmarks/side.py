@@ -144,8 +144,7 @@ def register_profile(image: np.ndarray, front: ViewPoints, front_height: int,
 
     def fitted(m: np.ndarray, dist: np.ndarray | None = None) -> ProfileFit:
         try:
-            return fit_profile(m, front.extras["landmarks"], front.points["11.5"][1], front.ipd_px,
-                               image.shape[0] / front_height, outline_distance(m) if dist is None else dist)
+            return _fit_midline(m, front, front_height, outline_distance(m) if dist is None else dist)
         except ValueError:
             raise InputError("the side photo's silhouette has no profile", where=where,
                              fix="give a profile photo showing the whole head, from the top of the hair to the "
@@ -270,6 +269,14 @@ def _stretch(points: dict, ids, prof: np.ndarray, anchor_pred: np.ndarray, ancho
     return k
 
 
+def _fit_midline(mask: np.ndarray, front: ViewPoints, front_height: int, distance: np.ndarray,
+                 anchors=()) -> ProfileFit:
+    """:func:`recon.landmarks.profile.fit_profile` of the front photo's face mesh onto a
+    nose-left side ``mask`` (with its outline ``distance``), at the photos' height ratio."""
+    return fit_profile(mask, front.extras["landmarks"], front.points["11.5"][1], front.ipd_px,
+                       mask.shape[0] / front_height, distance, anchors=anchors)
+
+
 def _placed(fit: ProfileFit, depth_height: dict) -> dict:
     """Every feature point where ``fit`` carries its face mesh (depth, height)."""
     return {fp: fit.apply(zy[None])[0] for fp, zy in depth_height.items()}
@@ -297,9 +304,8 @@ def _held_by_lips(lips: dict, ipd: float, lab: np.ndarray, ctx: dict, front: Vie
     mask = ctx["mask"]
     if lips["area"] < LIPS_AREA * ipd ** 2:
         return None
-    fit = fit_profile(mask, front.extras["landmarks"], front.points["11.5"][1], front.ipd_px,
-                      mask.shape[0] / front_height, ctx["distance"],
-                      anchors=[(depth_height[own["8.3"]], lips["corner"][1])])
+    fit = _fit_midline(mask, front, front_height, ctx["distance"],
+                       anchors=[(depth_height[own["8.3"]], lips["corner"][1])])
     pts = _placed(fit, depth_height)
     eye, found = _seen_parts(lab, mask, pts, own, fit.scale * front.ipd_px)
     if found is None or abs(found["corner"][1] - lips["corner"][1]) > PART_HEIGHT_TOL * fit.scale * front.ipd_px:
