@@ -173,11 +173,13 @@ def fit_profile(mask: np.ndarray, landmarks: np.ndarray, front_top: float, ipd_f
 
     # Scales to start from: the photos' own ratio, and the one that puts the nose tip at
     # the height of the silhouette's most forward point in the upper part of the head.
+    # (None when that point is on the photo's edge: a profile cut by it has no nose tip to
+    # measure, and the edge's first row would start a face a fraction of the size.)
     band = rows[: max(3, int(0.6 * len(rows)))]
-    forward = float(band[np.nanargmin(prof[band])])
+    k = int(np.nanargmin(prof[band]))
     starts = [scale_guess]
-    if tip_y - front_top > 0.2 * ipd_front:
-        starts.append((forward - top) / (tip_y - front_top))
+    if tip_y - front_top > 0.2 * ipd_front and prof[band[k]] >= 0.5:
+        starts.append((float(band[k]) - top) / (tip_y - front_top))
     best, best_cost = None, np.inf
     for s0 in starts:
         if not np.isfinite(s0) or s0 <= 0:
