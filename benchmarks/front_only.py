@@ -153,6 +153,9 @@ def main(argv=None) -> int:
     ap.add_argument("--no-speed", action="store_true", help="skip the timed build")
     ap.add_argument("--no-makehuman", action="store_true", help="skip the MakeHuman head")
     args = ap.parse_args(argv)
+    from recon.evaluate.machine import describe_machine
+
+    print(f"# machine: {describe_machine()}")
     if not NPZ.exists():
         print(f"skipped: {NPZ} is absent (the ICT FaceKit test data)")
         return 0

@@ -165,6 +165,9 @@ def main(argv=None) -> int:
     ap.add_argument("--picture", type=Path, default=ROOT / "test-artifacts" / "landmarks_astronaut.png")
     ap.add_argument("--pair-picture", type=Path, default=ROOT / "test-artifacts" / "landmarks_synthetic.png")
     args = ap.parse_args(argv)
+    from recon.evaluate.machine import describe_machine
+
+    print(f"# machine: {describe_machine()}")
 
     from recon.landmarks import detect_front, mediapipe_available
     from recon.evaluate.synthetic import default_ict_path, hard_pair, synthetic_pair

@@ -328,6 +328,9 @@ def main(argv=None) -> int:
     ap.add_argument("--portraits", type=Path, nargs="*", default=[PORTRAITS],
                     help="folders of frontal portraits for --front-only (every photo in them and their subfolders)")
     args = ap.parse_args(argv)
+    from recon.evaluate.machine import describe_machine
+
+    print(f"# machine: {describe_machine()}")
     for f in args.folders:
         if not f.is_dir():
             print(f"real_photos: {f} is not a folder of people", file=sys.stderr)

@@ -87,6 +87,9 @@ def main(argv=None) -> int:
                     help="people built from synthetic photos, clean and hard (0: skip)")
     ap.add_argument("--heatmap", type=Path, help="write a per-vertex error render of the first identity (DFFD, exact)")
     args = ap.parse_args(argv)
+    from recon.evaluate.machine import describe_machine
+
+    print(f"# machine: {describe_machine()}")
     if not NPZ.exists():
         print(f"skipped: {NPZ} is absent (the ICT FaceKit test data)")
         return 0
