@@ -130,7 +130,7 @@ def fit_profile(mask: np.ndarray, landmarks: np.ndarray, front_top: float, ipd_f
     from scipy import ndimage as ndi
     from scipy.optimize import least_squares
 
-    from .silhouette import row_extents
+    from .silhouette import on_left_edge, row_extents
 
     dist = outline_distance(mask) if distance is None else distance
     h, w = mask.shape
@@ -178,7 +178,7 @@ def fit_profile(mask: np.ndarray, landmarks: np.ndarray, front_top: float, ipd_f
     band = rows[: max(3, int(0.6 * len(rows)))]
     k = int(np.nanargmin(prof[band]))
     starts = [scale_guess]
-    if tip_y - front_top > 0.2 * ipd_front and prof[band[k]] >= 0.5:
+    if tip_y - front_top > 0.2 * ipd_front and not on_left_edge(prof[band[k]]):
         starts.append((float(band[k]) - top) / (tip_y - front_top))
     best, best_cost = None, np.inf
     for s0 in starts:

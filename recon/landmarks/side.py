@@ -36,7 +36,7 @@ from mpeg4.errors import InputError
 from .front import ViewPoints
 from .mapping import SIDE_MAP_FILE, apply_mapping, load_mapping
 from .profile import ProfileFit, fit_profile, outline_distance
-from .silhouette import bumpiness, head_mask, row_extents
+from .silhouette import bumpiness, head_mask, on_left_edge, row_extents
 
 __all__ = ["ProfileCutOff", "facing_of", "detect_side", "register_profile"]
 
@@ -322,7 +322,7 @@ def _check_not_cut(prof: np.ndarray, y_top: float, pts: dict, scale: float, scal
     background the silhouette took in, whose edge the face does not reach, is no cut)."""
     chin = y_top + max(scale, scale_guess) * (front.points["2.1"][1] - front.points["11.5"][1])
     face_rows = np.arange(int(y_top), int(np.clip(chin, y_top, len(prof) - 1)) + 1)
-    cut = face_rows[np.isfinite(prof[face_rows]) & (prof[face_rows] < 0.5)]
+    cut = face_rows[on_left_edge(prof[face_rows])]
     if len(cut) > 0.1 * ipd and any(pts[fp][0] < 0.05 * ipd for fp in _ON_PROFILE if fp in pts):
         raise ProfileCutOff(f"the face runs off the photo's {'right' if flip else 'left'} edge (rows "
                          f"{cut[0]}-{cut[-1]}): the profile of the nose, lips or chin is cut off",

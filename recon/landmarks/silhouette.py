@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["head_mask", "row_extents", "largest_component", "bumpiness"]
+__all__ = ["head_mask", "row_extents", "on_left_edge", "largest_component", "bumpiness"]
 
 #: GrabCut works on the photo scaled so that its longer side is at most this (pixels).
 GRABCUT_SIDE = 720
@@ -115,6 +115,14 @@ def row_extents(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     left = np.where(any_, np.argmax(mask, axis=1), np.nan).astype(np.float64)
     right = np.where(any_, mask.shape[1] - 1 - np.argmax(mask[:, ::-1], axis=1), np.nan).astype(np.float64)
     return left, right
+
+
+def on_left_edge(left: np.ndarray) -> np.ndarray:
+    """(H,) bool: rows whose silhouette starts at the photo's left edge (column 0 of
+    :func:`row_extents`' ``left``): a silhouette cut off by the photo there. NaN rows are
+    False."""
+    left = np.asarray(left, float)
+    return np.isfinite(left) & (left < 0.5)
 
 
 def bumpiness(curve: np.ndarray, scale: int) -> float:
