@@ -36,11 +36,12 @@ from mpeg4.head import Head, SparseDisplacement
 from .lip_contours import MOUTH_LINE_FPS, lip_side, mouth_line, share_lips, smooth_partition
 from .puff import PUFF_FAPS, puff_field
 from .separate import separate_tables
+from .unfold import unfold_tables
 
 __all__ = ["JAW_PARTS", "JAW_FAPS", "moving_parts", "REGIONS", "ADJACENT", "region_of", "unrelated",
            "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit",
            "BROW_POINTS", "BROW_RAISE_SHAPES", "brow_partition", "smooth_partition",
-           "author_from_shapes",
+           "author_from_shapes", "unfold_report",
            "HIGH_LEVEL_SHAPES", "author_high_level"]
 
 #: FP group → face region. Regions follow the muscles that move them together: the soft
@@ -97,6 +98,9 @@ class FapFit:
     weights : dict of str to float
         Shape name → weight (positive direction), for ``route == "shapes"``; for the brow
         raisers, the weight where the FAP's piece of the raise is whole.
+    folds : int
+        Skin triangles the table alone still turns over at its worst border or at the
+        value :data:`fmc.unfold.EXTENT`, after :func:`fmc.unfold.unfold_tables`.
     """
 
     fap: int
@@ -104,6 +108,7 @@ class FapFit:
     error: float = 0.0
     leak: float = 0.0
     weights: dict | None = None
+    folds: int = 0
 
 
 #: The parts that move with the lower jaw (the jaw FAPs 3, 14 and 15 carry them along).
@@ -223,7 +228,7 @@ def unrelated(fp_id: str, ids: list[str]) -> np.ndarray:
 
 
 def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak_tol: float = 0.20,
-                       faps=None, separate: bool = True) -> tuple[FAT, list[FapFit]]:
+                       faps=None, separate: bool = True, unfold: bool = True) -> tuple[FAT, list[FapFit]]:
     """FATs for the low-level FAPs of ``head`` from its morph targets.
 
     Parameters
@@ -241,6 +246,9 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
     separate : bool
         Take out of each table what it does to other FAPs' points
         (:func:`fmc.separate.separate_tables`); False keeps the shapes' motion as it is.
+    unfold : bool
+        Relax the motion around the triangles each table turns over
+        (:func:`fmc.unfold.unfold_tables`, feature points held).
 
     Returns
     -------
@@ -326,8 +334,19 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
         report.append(FapFit(n, route, err_all, leak_all, weights))
     # Each of the sculpted shapes moves the whole lip: the lip FAPs share it (fmc.lip_contours);
     # and much more than its own point: each table leaves the others' points (fmc.separate).
+    # What is left still folds the fine creases (the lip corners): fmc.unfold smooths it there.
     fat = share_lips(head, fat)
-    return (separate_tables(head, fat, keep=JAW_FAPS) if separate else fat), report
+    fat = separate_tables(head, fat, keep=JAW_FAPS) if separate else fat
+    return (unfold_report(head, fat, report) if unfold else fat), report
+
+
+def unfold_report(head: Head, fat: FAT, report: list[FapFit]) -> FAT:
+    """``fat`` unfolded (:func:`fmc.unfold.unfold_tables`), each FAP's folds left noted in
+    ``report`` (changed in place)."""
+    fat, left = unfold_tables(head, fat)
+    for fit in report:
+        fit.folds = left.get(fit.fap, 0)
+    return fat
 
 
 def brow_partition(head: Head, x: np.ndarray) -> np.ndarray:

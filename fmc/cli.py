@@ -42,6 +42,7 @@ def author(head: Path = typer.Argument(..., help="Head with feature points (.glb
     """Author Facial Animation Tables: the 66 low-level FAPs, the 15 visemes and the 7 expressions."""
     from collections import Counter
 
+    from fmc.unfold import EXTENT
     from mpeg4.io import load_head, save_head
 
     h = load_head(head)
@@ -63,7 +64,9 @@ def author(head: Path = typer.Argument(..., help="Head with feature points (.glb
     routes = Counter(r.route for r in report)
     typer.echo(f"{out}: {len(fat)} tables ({', '.join(f'{k} {v}' for k, v in sorted(routes.items()))}); "
                f"worst feature point error {max(r.error for r in report):.1%}, "
-               f"worst leak into unrelated points {max(r.leak for r in report):.1%}")
+               f"worst leak into unrelated points {max(r.leak for r in report):.1%}; "
+               f"{sum(r.folds > 0 for r in report)} tables alone still turn skin triangles over at their borders "
+               f"or at ±{EXTENT:.0f} (most: {max(r.folds for r in report)}; see fmc.unfold)")
 
 
 #: The head argument of play, say and animate (read by fmc.heads.animated_head).

@@ -47,7 +47,8 @@ The method, after Pandžić [1]_, one small function per step:
    source has nothing for that lies on the skin (separate eyelids, brow and lash cards, a
    beard: :func:`surface_followers`) moves as the skin under it.
 8. Denormalisation by the target's scales; :func:`clone` returns the target with the
-   cloned morph targets (same names) and FATs.
+   cloned morph targets (same names) and FATs, each low-level table relaxed where it turns
+   the target's skin over (:func:`fmc.unfold.unfold_tables`).
 
 References
 ----------

@@ -13,7 +13,7 @@ from importlib import resources
 import numpy as np
 from scipy.optimize import brentq, nnls
 
-from fmc.author import JAW_FAPS, FapFit, _falloff, _special, unrelated
+from fmc.author import JAW_FAPS, FapFit, _falloff, _special, unfold_report, unrelated
 from fmc.lip_contours import share_lips
 from fmc.puff import PUFF_FAPS, puff_field
 from fmc.separate import separate_tables
@@ -66,7 +66,8 @@ def _diff(moved: dict, neutral: dict) -> dict:
 
 
 def author_from_muscles(head: Head, value: float = 512.0, tol: float = 0.10, leak_tol: float = 0.20,
-                        faps=None, rig: MuscleRig | None = None, separate: bool = True) -> tuple[FAT, list[FapFit]]:
+                        faps=None, rig: MuscleRig | None = None, separate: bool = True,
+                        unfold: bool = True) -> tuple[FAT, list[FapFit]]:
     """FATs for the low-level FAPs of ``head`` from FaceEngine's hybrid model.
 
     Parameters
@@ -89,6 +90,9 @@ def author_from_muscles(head: Head, value: float = 512.0, tol: float = 0.10, lea
     separate : bool
         Take out of each table what it does to other FAPs' points
         (:func:`fmc.separate.separate_tables`); False keeps the model's motion as it is.
+    unfold : bool
+        Relax the motion around the triangles each table turns over
+        (:func:`fmc.unfold.unfold_tables`, feature points held).
 
     Returns
     -------
@@ -208,7 +212,8 @@ def author_from_muscles(head: Head, value: float = 512.0, tol: float = 0.10, lea
     # A muscle moves the whole lip: the lip FAPs share it (fmc.lip_contours); and other FAPs'
     # points: each table leaves them (fmc.separate).
     fat = share_lips(head, fat)
-    return (separate_tables(head, fat, keep=JAW_FAPS) if separate else fat), report
+    fat = separate_tables(head, fat, keep=JAW_FAPS) if separate else fat
+    return (unfold_report(head, fat, report) if unfold else fat), report
 
 
 def _falloff_only(table, rig, n, signs, head, value, unit, samples):

@@ -11,6 +11,7 @@ from fmc.author import JAW_FAPS, unrelated
 from fmc.author import lip_side, smooth_partition
 from fmc.lip_contours import LIP_NODES, innerness
 from fmc.separate import separate_tables
+from fmc.unfold import unfold_tables
 from fmc.muscles import (GROUPS, HIGH_LEVEL_FAPS, Muscle, MuscleRig, author_from_muscles,
                          author_high_level_from_muscles, eyeball_centre, load_placement, place_muscles, split_lips)
 
@@ -222,10 +223,10 @@ def test_head_turn_fades_over_the_neck_and_matches_the_model(rigged):
 
 def test_tables_reproduce_the_model_at_the_authoring_value(rigged):
     """The tables as the model makes them (not separated) are the model at the authoring
-    value; the head's tables are those separated (fmc.separate)."""
+    value; the head's tables are those separated (fmc.separate), then unfolded (fmc.unfold)."""
     head, rig, _ = rigged
-    raw, _ = author_from_muscles(head, rig=rig, separate=False)
-    separated = separate_tables(head, raw, keep=JAW_FAPS)
+    raw, _ = author_from_muscles(head, rig=rig, separate=False, unfold=False)
+    separated, _ = unfold_tables(head, separate_tables(head, raw, keep=JAW_FAPS))
     neutral = {n: p.vertices for n, p in head.parts.items()}
     for n in (19, 31, 61, 12):
         assert np.array_equal(apply_fat(separated, neutral, {n: 400.0}, head.fapu)["skin"],

@@ -1,0 +1,225 @@
+"""Tables that turn the skin over as little as they can: folds relaxed out of each table.
+
+Authored from sculpted shapes and separated so that FAPs add up (:mod:`fmc.separate`), a
+table still folds the skin where its motion changes faster than the mesh is fine: the
+generic head's lip corners are a crease of triangles 0.06 mm across, and a lip corner's
+stretch at 300 turned 157 of them over (an edge stretched to 14 times its length), the
+corner's raise 131, the jaw's shift 73. A real stream sums a dozen such tables, and the
+folds add up: 473 triangles turned over in one frame of Greta's anger.
+
+:func:`unfold_offsets` takes one displacement field and, where it turns triangles over,
+replaces it by the bi-harmonic interpolation of the field around the fold (the smoothest
+motion that meets the rest), over a region grown from 1 to 16 mm around the fold until
+nothing is turned over, keeping the try with the fewest folds. Feature points' vertices
+are held: the motion the standard defines (a FAP's own point, the points
+:mod:`fmc.separate` keeps still) does not change. :func:`unfold_tables` does this for every
+low-level skin table of a FAT at each interval border and, beyond the outer ones, at the
+value :data:`EXTENT` that streams reach.
+
+Some folds cannot go while the feature points are held, and some tables are left as
+authored (:data:`KEPT`: the brow raisers, the lip corners' stretches). Measured on the
+generic head (``tests/fmc/test_unfold.py``, ``benchmarks/fap_conformance.py``): the tables
+it relaxes, each alone at ±300, turned 1674 triangles over in all before, 323 after; the
+nine Xface and six Greta streams' worst frame 473 before, 78 after, the longest edge 19.3
+times its length before, 5.0 after, the feature points' conformance unchanged (98.5 %).
+The folds left come from tables added together (at the lip corners in Greta's disgust, on
+the forehead over the raised brows in her surprise). What it costs: relaxed around its held
+point, a table peaks more sharply there (the lip corner's lowering at 512, its skin 1 mm
+from the point: 0.59 of the point's motion, 0.85 before), and cloned onto MakeHuman's
+coarser mesh, which samples beside the peak, the corners' raise moved its point 6 to 25 %
+short (the FAPU conformance of ``benchmarks/foreign_heads.py`` 51 to 46 %).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import sparse
+from scipy.sparse.linalg import splu
+from scipy.spatial import cKDTree
+
+from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, fap_unit, signed_overlaps
+from mpeg4.head import Head
+from mpeg4.seams import seam_copies
+from mpeg4.surface import bilaplacian
+
+__all__ = ["REACHES", "EXTENT", "KEPT", "inverted_triangles", "unfold_offsets", "unfold_tables"]
+
+#: Distance, metres, around the folds within which the motion is relaxed, at each try.
+REACHES = (0.001, 0.002, 0.004, 0.008, 0.016)
+#: FAP value (each way) up to which a table's motion is unfolded beyond its outer borders:
+#: streams go beyond the usual ±512 (the lids close at 1024, Greta's anger raises the lower
+#: lip by 609).
+EXTENT = 1024.0
+#: FAPs left as authored by default. The brow raisers 31-36 are pieces of one sculpted raise
+#: (:func:`fmc.author.brow_partition`) that add up to it; relaxed one by one they no longer
+#: do: all six at 200 creased the forehead by 12 to 19 degrees of fold growth, not 7. The
+#: lip corners' stretches 6, 7, 53 and 54 move one corner point 25 mm at 512 while the
+#: other contour's, 3.3 mm away, stays: that fold cannot go, and relaxing around it left a
+#: steep slope between the two points that cloning carried onto other heads (MakeHuman's
+#: longest edge at ±512 went from 11.6 to 24.3 times its length). A stream sets both
+#: contours' stretch (the player fills the one it leaves out), which fold little together.
+KEPT = frozenset(range(31, 37)) | {6, 7, 53, 54}
+# Corrections under this share of a table's largest motion are not stored.
+_KEEP = 1e-4
+
+
+def inverted_triangles(vertices: np.ndarray, triangles: np.ndarray, offsets: np.ndarray,
+                       scales=(1.0,)) -> np.ndarray:
+    """(T,) bool: triangles whose normal, moved by ``s · offsets`` (V, 3) for any ``s`` in
+    ``scales``, points against its rest normal (slivers of no area are never counted)."""
+    out = np.zeros(len(triangles), bool)
+    # Only a triangle with a moving corner can turn over.
+    live = np.flatnonzero((offsets != 0).any(axis=1)[triangles].any(axis=1))
+    t = triangles[live]
+    rest = np.cross(vertices[t[:, 1]] - vertices[t[:, 0]], vertices[t[:, 2]] - vertices[t[:, 0]])
+    turned = np.zeros(len(t), bool)
+    for s in scales:
+        moved = vertices + s * offsets
+        now = np.cross(moved[t[:, 1]] - moved[t[:, 0]], moved[t[:, 2]] - moved[t[:, 0]])
+        turned |= (rest * now).sum(axis=1) < 0
+    out[live] = turned & (np.linalg.norm(rest, axis=1) > 1e-12)
+    return out
+
+
+def unfold_offsets(vertices: np.ndarray, triangles: np.ndarray, offsets: np.ndarray, held: np.ndarray,
+                   scales=(1.0,), bilap: sparse.csr_matrix | None = None) -> tuple[np.ndarray, int]:
+    """``offsets`` with the motion around each fold replaced by a smooth one.
+
+    Parameters
+    ----------
+    vertices : (V, 3) float
+        Rest positions, metres (seam copies merged: one row per surface point).
+    triangles : (T, 3) int
+    offsets : (V, 3) float
+        The motion, metres.
+    held : (V,) bool
+        Vertices whose motion must not change (feature points).
+    scales : sequence of float
+        The motion must turn nothing over at each of these multiples of ``offsets``.
+    bilap : (V, V) sparse, optional
+        :func:`mpeg4.surface.bilaplacian` of the mesh, when the caller has it.
+
+    Returns
+    -------
+    offsets : (V, 3) float
+        The relaxed motion (a new array; the input is not changed).
+    left : int
+        Triangles still turned over at the worst scale (0 when unfolded).
+    """
+    out = np.array(offsets, dtype=np.float64)
+
+    def folds(d):
+        each = [inverted_triangles(vertices, triangles, d, (s,)) for s in scales]
+        return np.unique(triangles[np.logical_or.reduce(each)]), tuple(int(b.sum()) for b in each)
+
+    corners, count = folds(out)
+    if not len(corners):
+        return out, 0
+    q = bilaplacian(vertices, triangles) if bilap is None else bilap
+    # The smaller motions come first: a try that unfolds a smaller one at the cost of a
+    # larger one is better.
+    best, fewest = out, count
+    region = np.zeros(len(vertices), bool)
+    for reach in REACHES:
+        region |= cKDTree(vertices[corners]).query(vertices, distance_upper_bound=reach)[0] <= reach
+        free = region & ~held
+        fixed = ~free
+        trial = np.array(offsets, dtype=np.float64)
+        try:
+            lu = splu(q[free][:, free].tocsc())
+        except RuntimeError:  # a piece of mesh with nothing held around it: no unique smooth motion
+            continue
+        trial[free] = lu.solve(-np.asarray(q[free][:, fixed] @ trial[fixed]))
+        corners, count = folds(trial)
+        if count < fewest:
+            best, fewest = trial, count
+        if not any(fewest):
+            break
+    return best, max(fewest)
+
+
+def _skin_held(head: Head, inverse: np.ndarray, n: int) -> np.ndarray:
+    held = np.zeros(n, bool)
+    for fp in head.feature_points.values():
+        if fp.part == "skin":
+            held[inverse[np.asarray(fp.vertices)]] = True
+    return held
+
+
+def unfold_tables(head: Head, fat: FAT | None = None, *, keep=KEPT) -> tuple[FAT, dict[int, int]]:
+    """A copy of ``fat`` (default ``head.fat``) whose low-level skin tables turn as few
+    triangles over as they can, feature points held (:func:`unfold_offsets`), at each of
+    their interval borders and at the value :data:`EXTENT` beyond the outer ones.
+
+    Parameters
+    ----------
+    head : Head
+    fat : FAT, optional
+    keep : iterable of int
+        FAPs whose tables stay as they are (default :data:`KEPT`).
+
+    Returns
+    -------
+    fat : FAT
+        Tables left as they were share their objects with the input.
+    left : dict
+        FAP → triangles its table alone still turns over at the worst of those values, for
+        the tables that could not be unfolded entirely.
+    """
+    keep = frozenset(keep)
+    given = (head.fat if fat is None else fat) or {}
+    out = FAT(given)
+    skin = head.skin
+    first, inverse = seam_copies(skin.vertices)
+    v = skin.vertices[first]
+    t = inverse[np.asarray(skin.triangles)]
+    t = t[(t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 2] != t[:, 0])]
+    held = _skin_held(head, inverse, len(v))
+    q = None
+    left = {}
+    for (n, hl), table in given.items():
+        if hl or n in keep or not any(m.part == "skin" for m in table.meshes):
+            continue
+        unit = fap_unit(n, head.fapu)
+        meshes, changed = [], False
+        for mesh in table.meshes:
+            if mesh.part != "skin":
+                meshes.append(mesh)
+                continue
+            b = mesh.borders
+            # Offsets (metres) of every vertex at each border: the table's motion is
+            # piecewise linear between them.
+            dense = np.zeros((len(skin.vertices), len(b) - 1, 3))
+            dense[mesh.indices] = mesh.displacements
+            merged = [unit * np.einsum("vic,i->vc", dense[first], signed_overlaps(b, x)) for x in b]
+            fixed = {}
+            for k, o in enumerate(merged):
+                if b[k] == 0:
+                    continue
+                # Beyond the outer borders the slope goes on: streams go that far.
+                far = max(1.0, EXTENT / abs(b[k])) if k in (0, len(b) - 1) else 1.0
+                scales = (1.0 / far, 1.0)
+                if not inverted_triangles(v, t, far * o, scales).any():
+                    continue
+                q = bilaplacian(v, t) if q is None else q
+                relaxed, bad = unfold_offsets(v, t, far * o, held, scales, q)
+                fixed[k] = relaxed / far
+                if bad:
+                    left[n] = max(left.get(n, 0), bad)
+            if not fixed:
+                meshes.append(mesh)
+                continue
+            changed = True
+            for k, o in fixed.items():
+                merged[k] = o
+            slopes = np.zeros((len(v), len(b) - 1, 3))
+            for i in range(len(b) - 1):
+                slopes[:, i] = (merged[i + 1] - merged[i]) / (unit * (b[i + 1] - b[i]))
+            dense = slopes[inverse]
+            size = np.abs(dense).max(axis=(1, 2))
+            stored = np.union1d(mesh.indices, np.flatnonzero(size > _KEEP * size.max()))
+            meshes.append(FaceDefMesh("skin", b, stored, dense[stored]))
+        if changed:
+            out.add(FaceDefTable(table.fap, table.high_level, meshes, list(table.transforms)))
+    return out, left
+
