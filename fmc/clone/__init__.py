@@ -47,8 +47,9 @@ The method, after Pandžić [1]_, one small function per step:
    source has nothing for that lies on the skin (separate eyelids, brow and lash cards, a
    beard: :func:`surface_followers`) moves as the skin under it.
 8. Denormalisation by the target's scales; :func:`clone` returns the target with the
-   cloned morph targets (same names) and FATs, each low-level table relaxed where it turns
-   the target's skin over (:func:`fmc.unfold.unfold_tables`).
+   cloned morph targets (same names) and FATs, each low-level table scaled so that its own
+   feature point moves by value × FAPU on the target (:func:`calibrate_tables`) and
+   relaxed where it turns the target's skin over (:func:`fmc.unfold.unfold_tables`).
 
 References
 ----------
@@ -57,6 +58,7 @@ References
 
 from .align import (FPTriangulation, bilaplacian, delaunay_fp_triangulation, folded_triangles, load_fp_triangulation,
                     midway, outer_radius, surface_warp, triangulation_for, vertex_positions, warp)
+from .calibrate import LIMITS, calibrate_tables
 from .cloning import (REQUIRED_FPS, Correspondence, align_heads, check_head, clone, clone_targets,
                       correspond, lip_sides, pin_feature_points, skin_weights)
 from .contours import CONTOURS, contour_pairs, contour_path, edge_graph
@@ -68,6 +70,7 @@ from .space import MOUTH_SPAN, alignment_space, cylinder_axis
 
 __all__ = [
     "clone", "clone_targets", "correspond", "Correspondence", "check_head", "REQUIRED_FPS",
+    "calibrate_tables", "LIMITS",
     "align_heads", "lip_sides", "skin_weights", "pin_feature_points",
     "normalisation", "region_scales", "lip_classes", "lip_sides_on_mesh", "LIP_FPS",
     "alignment_space", "cylinder_axis", "MOUTH_SPAN",

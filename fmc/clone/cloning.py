@@ -24,6 +24,7 @@ from mpeg4.head import Head, SparseDisplacement
 
 from ..unfold import unfold_tables
 from .align import folded_triangles, midway, outer_radius, surface_warp, triangulation_for, vertex_positions, warp
+from .calibrate import LIMITS, calibrate_tables
 from .contours import contour_pairs
 from .followers import JAW_ROLES, jaw_anchors, jaw_riders, surface_followers
 from .interpolate import gradient_operator, interpolation_matrix
@@ -472,7 +473,9 @@ def clone(source: Head, target: Head, antialias: float | None = 0.0, triangulati
     FAP so its feature point moves by the target's FAP unit, and rebuilt in the target's
     FAPU; its transforms are re-centred on the target: the eyes about the target's eye
     centres, the head about the target's 7.1 (both installed when the target has none).
-    The cloned tables are then unfolded on the target's mesh (:func:`fmc.unfold.unfold_tables`):
+    Each cloned low-level table is then scaled so that its own feature point moves by
+    value × FAPU on the target (:func:`fmc.clone.calibrate.calibrate_tables`; a warning
+    lists those whose point moves too far off to be scaled), and unfolded on the target's mesh (:func:`fmc.unfold.unfold_tables`):
     on the example's head, over the real streams of ``benchmarks/fap_conformance.py``, the
     longest stretched edge went from 13.9 times its length to 5.7 and the most triangles
     turned over from 88 to 75, for about 4 s.
@@ -548,6 +551,13 @@ def clone(source: Head, target: Head, antialias: float | None = 0.0, triangulati
         for key, table in transforms.items():
             if key not in out.fat:
                 out.fat.add(table)
+        out.fat, off = calibrate_tables(out)
+        if off:
+            warnings.append(f"{len(off)} cloned FAPs move their point on the target further from value × FAPU "
+                            f"than the {1 / LIMITS[1]:.2f}–{1 / LIMITS[0]:.2f} times that can be scaled away, and were "
+                            "left as cloned (FAP: times value × FAPU: "
+                            + ", ".join(f"{n}: {1 / f:.2f}" if f > 0 else f"{n}: the wrong way"
+                                        for n, f in sorted(off.items())) + ")")
         if unfold:
             out.fat, _ = unfold_tables(out)
     out.metadata = dict(out.metadata, cloned_from=str(source.metadata.get("name", "source head")))
