@@ -38,7 +38,7 @@ from scipy import sparse
 from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
-from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, fap_unit, signed_overlaps
+from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, fap_unit
 from mpeg4.head import Head
 from mpeg4.seams import seam_copies
 from mpeg4.surface import bilaplacian
@@ -60,8 +60,6 @@ EXTENT = 1024.0
 #: longest edge at ±512 went from 11.6 to 24.3 times its length). A stream sets both
 #: contours' stretch (the player fills the one it leaves out), which fold little together.
 KEPT = frozenset(range(31, 37)) | {6, 7, 53, 54}
-# Corrections under this share of a table's largest motion are not stored.
-_KEEP = 1e-4
 
 
 def inverted_triangles(vertices: np.ndarray, triangles: np.ndarray, offsets: np.ndarray,
@@ -139,14 +137,6 @@ def unfold_offsets(vertices: np.ndarray, triangles: np.ndarray, offsets: np.ndar
     return best, max(fewest)
 
 
-def _skin_held(head: Head, inverse: np.ndarray, n: int) -> np.ndarray:
-    held = np.zeros(n, bool)
-    for fp in head.feature_points.values():
-        if fp.part == "skin":
-            held[inverse[np.asarray(fp.vertices)]] = True
-    return held
-
-
 def unfold_tables(head: Head, fat: FAT | None = None, *, keep=KEPT) -> tuple[FAT, dict[int, int]]:
     """A copy of ``fat`` (default ``head.fat``) whose low-level skin tables turn as few
     triangles over as they can, feature points held (:func:`unfold_offsets`), at each of
@@ -175,7 +165,10 @@ def unfold_tables(head: Head, fat: FAT | None = None, *, keep=KEPT) -> tuple[FAT
     v = skin.vertices[first]
     t = inverse[np.asarray(skin.triangles)]
     t = t[(t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 2] != t[:, 0])]
-    held = _skin_held(head, inverse, len(v))
+    held = np.zeros(len(v), bool)
+    for fp in head.feature_points.values():
+        if fp.part == "skin":
+            held[inverse[np.asarray(fp.vertices)]] = True
     q = None
     left = {}
     for (n, hl), table in given.items():
@@ -188,13 +181,8 @@ def unfold_tables(head: Head, fat: FAT | None = None, *, keep=KEPT) -> tuple[FAT
                 meshes.append(mesh)
                 continue
             b = mesh.borders
-            # Offsets (metres) of every vertex at each border: the table's motion is
-            # piecewise linear between them.
-            dense = np.zeros((len(skin.vertices), len(b) - 1, 3))
-            dense[mesh.indices] = mesh.displacements
-            merged = [unit * np.einsum("vic,i->vc", dense[first], signed_overlaps(b, x)) for x in b]
-            fixed = {}
-            for k, o in enumerate(merged):
+            at = mesh.border_offsets(unit, len(skin.vertices))[:, first]
+            for k, o in enumerate(at):
                 if b[k] == 0:
                     continue
                 # Beyond the outer borders the slope goes on: streams go that far.
@@ -204,23 +192,11 @@ def unfold_tables(head: Head, fat: FAT | None = None, *, keep=KEPT) -> tuple[FAT
                     continue
                 q = bilaplacian(v, t) if q is None else q
                 relaxed, bad = unfold_offsets(v, t, far * o, held, scales, q)
-                fixed[k] = relaxed / far
+                at[k], changed = relaxed / far, True
                 if bad:
                     left[n] = max(left.get(n, 0), bad)
-            if not fixed:
-                meshes.append(mesh)
-                continue
-            changed = True
-            for k, o in fixed.items():
-                merged[k] = o
-            slopes = np.zeros((len(v), len(b) - 1, 3))
-            for i in range(len(b) - 1):
-                slopes[:, i] = (merged[i + 1] - merged[i]) / (unit * (b[i + 1] - b[i]))
-            dense = slopes[inverse]
-            size = np.abs(dense).max(axis=(1, 2))
-            stored = np.union1d(mesh.indices, np.flatnonzero(size > _KEEP * size.max()))
-            meshes.append(FaceDefMesh("skin", b, stored, dense[stored]))
+            meshes.append(FaceDefMesh.from_border_offsets("skin", b, at[:, inverse], unit, mesh.indices)
+                          if changed else mesh)
         if changed:
             out.add(FaceDefTable(table.fap, table.high_level, meshes, list(table.transforms)))
     return out, left
-

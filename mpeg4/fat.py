@@ -124,6 +124,28 @@ class FaceDefMesh:
         """(k, 3) displacement in metres of the listed vertices for FAP value ``value``."""
         return unit * np.einsum("knc,n->kc", self.displacements, signed_overlaps(self.borders, value))
 
+    def border_offsets(self, unit: float, n_vertices: int) -> np.ndarray:
+        """(n + 1, V, 3) displacement in metres of every vertex of the part at each border:
+        the motion is linear between them (0 at a border of 0)."""
+        dense = np.zeros((n_vertices,) + self.displacements.shape[1:])
+        dense[self.indices] = self.displacements
+        return unit * np.einsum("vic,bi->bvc", dense, np.array([signed_overlaps(self.borders, x)
+                                                                   for x in self.borders]))
+
+    @classmethod
+    def from_border_offsets(cls, part: str, borders: np.ndarray, offsets: np.ndarray, unit: float,
+                            keep: np.ndarray | None = None, share: float = 1e-4) -> "FaceDefMesh":
+        """The mesh table whose :meth:`border_offsets` are ``offsets`` (n + 1, V, 3), listing
+        the vertices in ``keep`` and those whose displacement is over ``share`` of the
+        largest."""
+        b = np.asarray(borders, dtype=np.float64)
+        d = np.stack([(offsets[i + 1] - offsets[i]) / (unit * (b[i + 1] - b[i])) for i in range(len(b) - 1)], axis=1)
+        size = np.abs(d).max(axis=(1, 2))
+        stored = np.flatnonzero(size > share * size.max(initial=0.0))
+        if keep is not None:
+            stored = np.union1d(np.asarray(keep, dtype=np.int64), stored)
+        return cls(part, b, stored, d[stored])
+
 
 @dataclass
 class FaceDefTransform:
