@@ -33,6 +33,7 @@ from mpeg4.errors import InputError
 from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
 from mpeg4.head import Head, SparseDisplacement
 
+from .bound import bound_tables
 from .lip_contours import MOUTH_LINE_FPS, lip_side, mouth_line, share_lips, smooth_partition
 from .puff import PUFF_FAPS, puff_field
 from .separate import separate_tables
@@ -228,7 +229,8 @@ def unrelated(fp_id: str, ids: list[str]) -> np.ndarray:
 
 
 def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak_tol: float = 0.20,
-                       faps=None, separate: bool = True, unfold: bool = True) -> tuple[FAT, list[FapFit]]:
+                       faps=None, separate: bool = True, unfold: bool = True,
+                       bound: bool = True) -> tuple[FAT, list[FapFit]]:
     """FATs for the low-level FAPs of ``head`` from its morph targets.
 
     Parameters
@@ -249,6 +251,9 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
     unfold : bool
         Relax the motion around the triangles each table turns over
         (:func:`fmc.unfold.unfold_tables`, feature points held).
+    bound : bool
+        Cap each table's skin motion at :data:`fmc.bound.RATIO` times its own point's
+        (:func:`fmc.bound.bound_tables`; the jaw's tables excepted).
 
     Returns
     -------
@@ -334,10 +339,12 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
         report.append(FapFit(n, route, err_all, leak_all, weights))
     # Each of the sculpted shapes moves the whole lip: the lip FAPs share it (fmc.lip_contours);
     # and much more than its own point: each table leaves the others' points (fmc.separate).
-    # What is left still folds the fine creases (the lip corners): fmc.unfold smooths it there.
+    # What is left still folds the fine creases (the lip corners): fmc.unfold smooths it
+    # there; and some regions outrun their point (the cheek beside a stretched corner): fmc.bound.
     fat = share_lips(head, fat)
     fat = separate_tables(head, fat, keep=JAW_FAPS) if separate else fat
-    return (unfold_report(head, fat, report) if unfold else fat), report
+    fat = unfold_report(head, fat, report) if unfold else fat
+    return (bound_tables(head, fat, keep=JAW_FAPS) if bound else fat), report
 
 
 def unfold_report(head: Head, fat: FAT, report: list[FapFit]) -> FAT:

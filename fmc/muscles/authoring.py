@@ -14,6 +14,7 @@ import numpy as np
 from scipy.optimize import brentq, nnls
 
 from fmc.author import JAW_FAPS, FapFit, _falloff, _special, unfold_report, unrelated
+from fmc.bound import bound_tables
 from fmc.lip_contours import share_lips
 from fmc.puff import PUFF_FAPS, puff_field
 from fmc.separate import separate_tables
@@ -67,7 +68,7 @@ def _diff(moved: dict, neutral: dict) -> dict:
 
 def author_from_muscles(head: Head, value: float = 512.0, tol: float = 0.10, leak_tol: float = 0.20,
                         faps=None, rig: MuscleRig | None = None, separate: bool = True,
-                        unfold: bool = True) -> tuple[FAT, list[FapFit]]:
+                        unfold: bool = True, bound: bool = True) -> tuple[FAT, list[FapFit]]:
     """FATs for the low-level FAPs of ``head`` from FaceEngine's hybrid model.
 
     Parameters
@@ -93,6 +94,9 @@ def author_from_muscles(head: Head, value: float = 512.0, tol: float = 0.10, lea
     unfold : bool
         Relax the motion around the triangles each table turns over
         (:func:`fmc.unfold.unfold_tables`, feature points held).
+    bound : bool
+        Cap each table's skin motion at :data:`fmc.bound.RATIO` times its own point's
+        (:func:`fmc.bound.bound_tables`; the jaw's tables excepted).
 
     Returns
     -------
@@ -213,7 +217,8 @@ def author_from_muscles(head: Head, value: float = 512.0, tol: float = 0.10, lea
     # points: each table leaves them (fmc.separate).
     fat = share_lips(head, fat)
     fat = separate_tables(head, fat, keep=JAW_FAPS) if separate else fat
-    return (unfold_report(head, fat, report) if unfold else fat), report
+    fat = unfold_report(head, fat, report) if unfold else fat
+    return (bound_tables(head, fat, keep=JAW_FAPS) if bound else fat), report
 
 
 def _falloff_only(table, rig, n, signs, head, value, unit, samples):

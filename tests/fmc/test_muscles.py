@@ -10,6 +10,7 @@ from mpeg4.generic_head import load_generic_head
 from fmc.author import JAW_FAPS, unrelated
 from fmc.author import lip_side, smooth_partition
 from fmc.lip_contours import LIP_NODES, innerness
+from fmc.bound import bound_tables
 from fmc.separate import separate_tables
 from fmc.unfold import unfold_tables
 from fmc.muscles import (GROUPS, HIGH_LEVEL_FAPS, Muscle, MuscleRig, author_from_muscles,
@@ -223,10 +224,11 @@ def test_head_turn_fades_over_the_neck_and_matches_the_model(rigged):
 
 def test_tables_reproduce_the_model_at_the_authoring_value(rigged):
     """The tables as the model makes them (not separated) are the model at the authoring
-    value; the head's tables are those separated (fmc.separate), then unfolded (fmc.unfold)."""
+    value; the head's tables are those separated (fmc.separate), unfolded (fmc.unfold) and
+    bounded (fmc.bound)."""
     head, rig, _ = rigged
-    raw, _ = author_from_muscles(head, rig=rig, separate=False, unfold=False)
-    separated, _ = unfold_tables(head, separate_tables(head, raw, keep=JAW_FAPS))
+    raw, _ = author_from_muscles(head, rig=rig, separate=False, unfold=False, bound=False)
+    separated = bound_tables(head, unfold_tables(head, separate_tables(head, raw, keep=JAW_FAPS))[0], keep=JAW_FAPS)
     neutral = {n: p.vertices for n, p in head.parts.items()}
     for n in (19, 31, 61, 12):
         assert np.array_equal(apply_fat(separated, neutral, {n: 400.0}, head.fapu)["skin"],
