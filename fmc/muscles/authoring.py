@@ -88,15 +88,10 @@ def author_from_muscles(head: Head, value: float = 512.0, tol: float = 0.10, lea
     rig : MuscleRig, optional
         A placed model (default: placed from ``fmc/data/muscles.toml``); its FAP mapping
         (:attr:`MuscleRig.actions`) is filled in.
-    separate : bool
-        Take out of each table what it does to other FAPs' points
-        (:func:`fmc.separate.separate_tables`); False keeps the model's motion as it is.
-    unfold : bool
-        Relax the motion around the triangles each table turns over
-        (:func:`fmc.unfold.unfold_tables`, feature points held).
-    bound : bool
-        Cap each table's skin motion at :data:`fmc.bound.RATIO` times its own point's
-        (:func:`fmc.bound.bound_tables`; the jaw's tables excepted).
+    separate, unfold, bound : bool
+        The steps after the model, as in :func:`fmc.author.author_from_shapes`: each table
+        leaves the other FAPs' points, is relaxed where it folds, and its skin is capped;
+        all False keep the model's motion as it is.
 
     Returns
     -------
