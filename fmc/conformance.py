@@ -24,6 +24,7 @@ from mpeg4.catalogue import FAPS
 from mpeg4.fat import apply_fat, fap_unit
 from mpeg4.head import Head
 from mpeg4.neck import neck_fade
+from mpeg4.surface import inverted_triangles, triangle_normals
 
 __all__ = ["HEAD_TURN_FAPS", "allowed_parts", "part_leaks", "eyeball_centre_shift", "fp_prediction",
            "fp_conformance", "lid_overlap", "region_over_fp", "SurfaceChecks"]
@@ -184,22 +185,18 @@ class SurfaceChecks:
     def __init__(self, head: Head, part: str = "skin"):
         p = head.parts[part]
         self.triangles = np.asarray(p.triangles)
-        self._normals = self._normal(p.vertices)
-        # Slivers (area ~ 0) have no reliable normal: they are left out of the flip count.
-        self._solid = np.linalg.norm(self._normals, axis=1) > 1e-12
+        self._rest = np.asarray(p.vertices, dtype=np.float64)
+        self._normals = triangle_normals(self._rest, self.triangles)
         e = np.concatenate([self.triangles[:, [0, 1]], self.triangles[:, [1, 2]], self.triangles[:, [2, 0]]])
         self.edges = np.unique(np.sort(e, axis=1), axis=0)
         self._lengths = np.linalg.norm(p.vertices[self.edges[:, 0]] - p.vertices[self.edges[:, 1]], axis=1)
         self._long = self._lengths > 1e-9
 
-    def _normal(self, v: np.ndarray) -> np.ndarray:
-        t = self.triangles
-        return np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
-
     def inverted(self, vertices: np.ndarray) -> int:
-        """Number of triangles whose normal points against its neutral one."""
-        dots = (self._normal(vertices) * self._normals).sum(axis=1)
-        return int(np.count_nonzero(self._solid & (dots < 0)))
+        """Number of triangles whose normal points against its neutral one
+        (:func:`mpeg4.surface.inverted_triangles`; slivers of no area left out)."""
+        return int(inverted_triangles(self._rest, self.triangles, vertices - self._rest,
+                                      rest_normals=self._normals).sum())
 
     def stretch(self, vertices: np.ndarray) -> float:
         """Largest edge length over its neutral length."""

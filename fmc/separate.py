@@ -44,7 +44,7 @@ from scipy.spatial import cKDTree
 from mpeg4.catalogue import FAPS
 from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable
 from mpeg4.head import Head
-from mpeg4.seams import seam_copies
+from mpeg4.seams import merged_surface
 from mpeg4.surface import bilaplacian, contour_path, edge_graph
 
 __all__ = ["REACH", "CHAINS", "held_rows", "correction_basis", "separate_tables"]
@@ -89,10 +89,7 @@ def correction_basis(head: Head, points: list[str], reach: float = REACH) -> np.
     every field at 0 there.
     """
     skin = head.skin
-    first, inverse = seam_copies(skin.vertices)
-    v = skin.vertices[first]
-    t = inverse[np.asarray(skin.triangles)]
-    t = t[(t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 2] != t[:, 0])]
+    _, inverse, v, t = merged_surface(skin.vertices, skin.triangles)
     col = {fp: k for k, fp in enumerate(points)}
     values = np.zeros((len(v), len(points)))
     held = np.zeros(len(v), bool)

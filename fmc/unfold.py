@@ -40,10 +40,10 @@ from scipy.spatial import cKDTree
 
 from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, fap_unit
 from mpeg4.head import Head
-from mpeg4.seams import seam_copies
-from mpeg4.surface import bilaplacian
+from mpeg4.seams import merged_surface
+from mpeg4.surface import bilaplacian, inverted_triangles
 
-__all__ = ["REACHES", "EXTENT", "KEPT", "inverted_triangles", "unfold_offsets", "unfold_tables"]
+__all__ = ["REACHES", "EXTENT", "KEPT", "unfold_offsets", "unfold_tables"]
 
 #: Distance, metres, around the folds within which the motion is relaxed, at each try.
 REACHES = (0.001, 0.002, 0.004, 0.008, 0.016)
@@ -60,24 +60,6 @@ EXTENT = 1024.0
 #: longest edge at ±512 went from 11.6 to 24.3 times its length). A stream sets both
 #: contours' stretch (the player fills the one it leaves out), which fold little together.
 KEPT = frozenset(range(31, 37)) | {6, 7, 53, 54}
-
-
-def inverted_triangles(vertices: np.ndarray, triangles: np.ndarray, offsets: np.ndarray,
-                       scales=(1.0,)) -> np.ndarray:
-    """(T,) bool: triangles whose normal, moved by ``s · offsets`` (V, 3) for any ``s`` in
-    ``scales``, points against its rest normal (slivers of no area are never counted)."""
-    out = np.zeros(len(triangles), bool)
-    # Only a triangle with a moving corner can turn over.
-    live = np.flatnonzero((offsets != 0).any(axis=1)[triangles].any(axis=1))
-    t = triangles[live]
-    rest = np.cross(vertices[t[:, 1]] - vertices[t[:, 0]], vertices[t[:, 2]] - vertices[t[:, 0]])
-    turned = np.zeros(len(t), bool)
-    for s in scales:
-        moved = vertices + s * offsets
-        now = np.cross(moved[t[:, 1]] - moved[t[:, 0]], moved[t[:, 2]] - moved[t[:, 0]])
-        turned |= (rest * now).sum(axis=1) < 0
-    out[live] = turned & (np.linalg.norm(rest, axis=1) > 1e-12)
-    return out
 
 
 def unfold_offsets(vertices: np.ndarray, triangles: np.ndarray, offsets: np.ndarray, held: np.ndarray,
@@ -161,10 +143,7 @@ def unfold_tables(head: Head, fat: FAT | None = None, *, keep=KEPT) -> tuple[FAT
     given = (head.fat if fat is None else fat) or {}
     out = FAT(given)
     skin = head.skin
-    first, inverse = seam_copies(skin.vertices)
-    v = skin.vertices[first]
-    t = inverse[np.asarray(skin.triangles)]
-    t = t[(t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 2] != t[:, 0])]
+    first, inverse, v, t = merged_surface(skin.vertices, skin.triangles)
     held = np.zeros(len(v), bool)
     for fp in head.feature_points.values():
         if fp.part == "skin":

@@ -14,7 +14,7 @@ import numpy as np
 from .errors import InputError
 from .head import Head, SparseDisplacement
 
-__all__ = ["seam_copies", "split_vertices"]
+__all__ = ["seam_copies", "merged_surface", "split_vertices"]
 
 
 def seam_copies(vertices: np.ndarray, decimals: int = 9) -> tuple[np.ndarray, np.ndarray]:
@@ -32,6 +32,26 @@ def seam_copies(vertices: np.ndarray, decimals: int = 9) -> tuple[np.ndarray, np
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     _, first, inverse = np.unique(np.round(v, decimals), axis=0, return_index=True, return_inverse=True)
     return first.astype(np.int64), inverse.reshape(-1).astype(np.int64)
+
+
+def merged_surface(vertices: np.ndarray, triangles: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A part's surface with the copies of each seam vertex made one (:func:`seam_copies`).
+
+    Returns
+    -------
+    first, inverse : (M,) and (N,) int64
+        As :func:`seam_copies`: a field on the merged surface ``f`` is ``f[inverse]`` on
+        the part, and a field on the part ``g`` is ``g[first]`` on the merged surface.
+    vertices : (M, 3) float64
+    triangles : (T', 3) int64
+        The part's triangles on the merged vertices, those a merge made degenerate left out.
+    """
+    first, inverse = seam_copies(vertices)
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 3)[first]
+    t = inverse[np.asarray(triangles, dtype=np.int64).reshape(-1, 3)]
+    t = t[(t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 2] != t[:, 0])]
+    return first, inverse, v, t
 
 
 def _extend(indices: np.ndarray, rows: np.ndarray, source: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:

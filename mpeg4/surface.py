@@ -16,7 +16,7 @@ from scipy.sparse.csgraph import dijkstra
 from .head import Head
 from .seams import seam_copies
 
-__all__ = ["DETOUR", "edge_graph", "fp_vertex", "contour_path", "bilaplacian"]
+__all__ = ["DETOUR", "edge_graph", "fp_vertex", "contour_path", "bilaplacian", "triangle_normals", "inverted_triangles"]
 
 # A path longer than this many times the straight distance between its feature points
 # has not found the contour.
@@ -113,3 +113,26 @@ def bilaplacian(vertices: np.ndarray, triangles: np.ndarray) -> sparse.csr_matri
     d = np.asarray(w.sum(axis=1)).ravel()
     lap = sparse.diags(d) - w
     return (lap @ sparse.diags(1.0 / np.maximum(d, 1e-12)) @ lap).tocsr()
+
+
+def triangle_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """(T, 3) each triangle's normal, its length twice the triangle's area."""
+    t = np.asarray(triangles)
+    return np.cross(vertices[t[:, 1]] - vertices[t[:, 0]], vertices[t[:, 2]] - vertices[t[:, 0]])
+
+
+def inverted_triangles(vertices: np.ndarray, triangles: np.ndarray, offsets: np.ndarray,
+                       scales=(1.0,), rest_normals: np.ndarray | None = None) -> np.ndarray:
+    """(T,) bool: triangles whose normal, moved by ``s · offsets`` (V, 3) for any ``s`` in
+    ``scales``, points against its rest normal (slivers of no area are never counted).
+    ``rest_normals``: :func:`triangle_normals` of ``vertices``, when the caller keeps them."""
+    out = np.zeros(len(triangles), bool)
+    # Only a triangle with a moving corner can turn over.
+    live = np.flatnonzero((offsets != 0).any(axis=1)[triangles].any(axis=1))
+    t = triangles[live]
+    rest = triangle_normals(vertices, t) if rest_normals is None else rest_normals[live]
+    turned = np.zeros(len(t), bool)
+    for s in scales:
+        turned |= (rest * triangle_normals(vertices + s * offsets, t)).sum(axis=1) < 0
+    out[live] = turned & (np.linalg.norm(rest, axis=1) > 1e-12)
+    return out

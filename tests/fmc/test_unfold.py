@@ -6,9 +6,10 @@ import pytest
 
 from fmc.author import author_from_shapes
 from fmc.conformance import SurfaceChecks
-from fmc.unfold import EXTENT, KEPT, inverted_triangles, unfold_offsets, unfold_tables
+from fmc.unfold import EXTENT, KEPT, unfold_offsets, unfold_tables
 from mpeg4 import apply_fat
 from mpeg4.generic_head import load_generic_head
+from mpeg4.surface import inverted_triangles
 
 
 def _grid(n=21, size=0.02):
