@@ -88,11 +88,9 @@ def bound_tables(head: Head, fat: FAT | None = None, *, ratio: float = RATIO, ke
             continue
         mesh, unit = meshes[0], fap_unit(n, head.fapu)
         own_rows = np.zeros(n_skin, bool)
-        own_rows[np.asarray(binding.vertices)] = True
-        weights = np.asarray(binding.weights, dtype=np.float64)
+        own_rows[list(binding.vertices)] = True
         at = mesh.border_offsets(unit, n_skin)
-        bounded = np.stack([bound_motion(o, float(np.linalg.norm(weights @ o[np.asarray(binding.vertices)])),
-                                         ratio, own_rows) for o in at])
+        bounded = np.stack([bound_motion(o, float(np.linalg.norm(binding.position(o))), ratio, own_rows) for o in at])
         if np.array_equal(bounded, at):
             continue
         new = FaceDefMesh.from_border_offsets("skin", mesh.borders, bounded, unit, mesh.indices)

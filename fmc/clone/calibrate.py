@@ -69,11 +69,11 @@ def calibrate_tables(head: Head, fat: FAT | None = None, limits: tuple[float, fl
         if len(meshes) != 1:
             continue
         mesh = meshes[0]
-        row = {int(i): k for k, i in enumerate(mesh.indices)}
-        # (intervals, 3) the point's motion per FAP unit, in units of the FAP's unit.
-        motion = sum((w * mesh.displacements[row[int(v)]] for v, w in zip(binding.vertices, binding.weights)
-                      if int(v) in row), np.zeros(mesh.displacements.shape[1:]))
-        along = motion @ np.asarray(FAPS[n].axis_vector, dtype=np.float64)
+        dense = np.zeros((len(head.parts[binding.part].vertices),) + mesh.displacements.shape[1:])
+        dense[mesh.indices] = mesh.displacements
+        # Per interval, the point's motion along the axis per FAP unit, in units of the FAP's unit.
+        along = np.tensordot(binding.weights, dense[list(binding.vertices)], 1) @ np.asarray(FAPS[n].axis_vector,
+                                                                                           dtype=np.float64)
         factor = np.ones(len(along))
         for i, a in enumerate(along):
             if a == 0.0:  # this interval moves nothing (a unidirectional FAP's other side)
