@@ -14,7 +14,8 @@ What it does (see ``data/generic_head/README.md`` for the why):
   iris, pupil — projected along the gaze), ``teeth_upper``/``teeth_lower``,
   ``gums_upper``/``gums_lower``/``tongue`` (the gums-and-tongue mesh split along its UV
   islands: islands the jaw does not move are the upper gums and palate, moving islands
-  narrower than 2.2 cm are the tongue, the rest the lower gums); the eyelash cards and the
+  narrower than 2.2 cm are the tongue, the rest the lower gums; lit as the open mouth lets
+  light in, through ramp textures: :func:`lit_mouth`); the eyelash cards and the
   lacrimal fluid, eye blend and eye occlusion overlays are dropped (they need textures with
   alpha; drawn opaque they hide the eyes);
 - the 53 ARKit-named expressions and ICT's two pupil-dilation shapes as sparse morph targets
@@ -42,17 +43,15 @@ sys.path.insert(0, str(ROOT))
 from mpeg4.catalogue import FEATURE_POINTS, FP_IDS  # noqa: E402
 from mpeg4.head import FeaturePointBinding, Head, Part, SparseDisplacement  # noqa: E402
 from recon.texture.materials import eye_texture, eye_uv  # noqa: E402
+from recon.texture.mouth import OPEN_JAW, cavity_light, lit_in_place  # noqa: E402
 
 DEFAULT_NPZ = ROOT.parent / "shared" / "data" / "ict_facekit" / "ict_facekit.npz"
 DEFAULT_OUT = ROOT / "data" / "generic_head" / "generic_head.glb"
 ICT_COMMIT = "da5f95a607f5e6b37755b38d3385d7f2853732e5"
 
-COLOURS = {
-    "skin": (0.87, 0.70, 0.60), "eye_l": (0.95, 0.95, 0.93), "eye_r": (0.95, 0.95, 0.93),
-    "teeth_upper": (0.96, 0.94, 0.86), "teeth_lower": (0.96, 0.94, 0.86), "gums_upper": (0.80, 0.42, 0.45),
-    "gums_lower": (0.80, 0.42, 0.45), "tongue": (0.85, 0.45, 0.45), "eyelashes_l": (0.12, 0.09, 0.08),
-    "eyelashes_r": (0.12, 0.09, 0.08),
-}
+#: Flat colours of the parts without a texture (the others are white under theirs: the eyes,
+#: the mouth's parts).
+COLOURS = {"skin": (0.87, 0.70, 0.60)}
 
 #: ICT meshes left out: the eyelash cards need their alpha texture (opaque they hide the
 #: eyes); the lacrimal fluid, eye blend and eye occlusion overlays are never split off.
@@ -371,7 +370,7 @@ def build_generic_head(npz_path=DEFAULT_NPZ) -> Head:
             uv = eye_uv(verts[ids], centre, verts[iris].mean(axis=0) - centre)
             texture = eye_texture()
         parts[name] = Part(name, verts[ids], tris, uv=uv, texture=texture,
-                           colour=(1.0, 1.0, 1.0) if texture is not None else COLOURS[name], centre=centre)
+                           colour=COLOURS.get(name, (1.0, 1.0, 1.0)), centre=centre)
     names = [str(x) for x in data["expression_names"]] + [str(x) for x in data["extra_expression_names"]]
     deltas = np.concatenate([data["expression_deltas"], data["extra_expression_deltas"]])
     targets = {}
@@ -396,7 +395,17 @@ def build_generic_head(npz_path=DEFAULT_NPZ) -> Head:
                                   else [int(ids[0]), int(ids[-1]) + 1]) for name, ids in part_vertices.items()},
         "morph_targets": "ICT-FaceKit expression blendshapes (ARKit names) and PupilDilate_L/R",
     }
-    return Head(parts, fps, targets, metadata=metadata)
+    return lit_mouth(Head(parts, fps, targets, metadata=metadata))
+
+
+def lit_mouth(head: Head) -> Head:
+    """The head with teeth, gums and tongue lit as the open mouth lets light in
+    (:mod:`recon.texture.mouth`, through ramp textures: the vertices keep ICT's order),
+    the light found with the jaw opened by ICT's ``jawOpen`` as far as FAP 3 at
+    ``OPEN_JAW`` opens it (the chin, 2.1, down by that many MNS)."""
+    drop = head.fp_position("2.1")[1] - head.fp_position("2.1", head.morphed({"jawOpen": 1.0}))[1]
+    posed = head.morphed({"jawOpen": OPEN_JAW * head.fapu.MNS0 / 1024.0 / drop})
+    return lit_in_place(head, cavity_light(posed, {n: p.triangles for n, p in head.parts.items()}))
 
 
 def main(argv=None) -> int:

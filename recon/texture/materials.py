@@ -2,7 +2,8 @@
 
 Made here, procedurally: the eye with the iris colour the photos give
 (:func:`iris_colour` samples it around the pupils), teeth with their enamel gradient and
-gaps, gums and tongue with a soft mottle. :func:`planar_uv` gives such a part texture
+gaps, gums and tongue with a soft mottle (:func:`mouth_albedo` picks a mouth part's by its
+name). :func:`planar_uv` gives such a part texture
 coordinates by projecting it along the viewing axis onto its bounding box.
 """
 
@@ -12,12 +13,14 @@ import numpy as np
 
 from mpeg4.errors import InputError
 
-__all__ = ["IRIS_DEG", "PUPIL_SHARE", "eye_texture", "eye_uv", "iris_colour", "teeth_texture",
-           "mottled_texture", "planar_uv"]
+__all__ = ["IRIS_DEG", "PUPIL_SHARE", "GUM_RGB", "TONGUE_RGB", "eye_texture", "eye_uv", "iris_colour",
+           "teeth_texture", "mottled_texture", "mouth_albedo", "planar_uv"]
 
 #: Angular radius of the iris seen from the eyeball's centre (about 6 mm on a 15.8 mm
 #: eyeball), and the pupil's share of the iris (a third, as in the MPEG-4 neutral face).
 IRIS_DEG, PUPIL_SHARE = 22.0, 1.0 / 3.0
+#: Base colours (RGB in [0, 1]) of the gums with the palate, and of the tongue.
+GUM_RGB, TONGUE_RGB = (0.80, 0.42, 0.45), (0.85, 0.45, 0.45)
 
 
 def eye_texture(size: int = 256, iris_rgb=(92, 64, 40)) -> np.ndarray:
@@ -128,6 +131,17 @@ def mottled_texture(rgb, size: int = 128, seed: int = 0, amount: float = 0.06) -
     noise /= max(float(np.abs(noise).max()), 1e-9)
     img = np.asarray(rgb, float)[None, None] * (1 + amount * noise)[..., None]
     return np.clip(img, 0, 255).astype(np.uint8)
+
+
+def mouth_albedo(part: str, size: int = 128, seed: int = 0) -> np.ndarray:
+    """(size, size, 3) uint8 material of a mouth part by its name: :func:`teeth_texture`
+    for ``teeth_*``, the gums' (``gums_*``) or the tongue's colour mottled
+    (:func:`mottled_texture`) otherwise. The top row lies at the top of the part seen from
+    the front (:func:`planar_uv`)."""
+    if part.startswith("teeth"):
+        return teeth_texture(size, seed)
+    rgb = TONGUE_RGB if part.startswith("tongue") else GUM_RGB
+    return mottled_texture(np.asarray(rgb) * 255, size, seed)
 
 
 def planar_uv(vertices: np.ndarray, axes: tuple[int, int] = (0, 1)) -> np.ndarray:

@@ -16,6 +16,14 @@ the parts' textures, where every renderer (ours, three.js, Blender) shows it:
    its material (:mod:`recon.texture.materials`: enamel, gum, tongue) times that light
    baked into its texture.
 
+A head whose vertices must keep their order and number — the generic head, whose
+identities, expressions and tables apply by ICT's vertex order — cannot be unwrapped
+(an atlas splits vertices along its seams). :func:`lit_in_place` shows the same light
+there through a *ramp*: each vertex's texture coordinate is its light (and its height on
+the part), the texture holds the material shaded by every light. Texture coordinates
+interpolate across a triangle as the light would, so renderers draw the baked shading;
+the materials' mottle and the gaps between the teeth are what it gives up.
+
 References
 ----------
 M. Pharr and S. Green, "Ambient occlusion", GPU Gems, chapter 17, 2004 (the quantity
@@ -31,8 +39,8 @@ from mpeg4.head import Head
 from mpeg4.render import Camera, RenderMesh, vertex_normals
 from mpeg4.unlit import render_depth
 
-__all__ = ["MOUTH_PARTS", "OPEN_JAW", "BOUNCE", "sky_directions", "open_pose", "cavity_light", "shaded",
-           "mouth_textures"]
+__all__ = ["MOUTH_PARTS", "OPEN_JAW", "BOUNCE", "RAMP", "sky_directions", "open_pose", "cavity_light", "shaded",
+           "mouth_textures", "lit_in_place"]
 
 #: The parts whose textures are made here.
 MOUTH_PARTS = ("teeth_upper", "teeth_lower", "gums_upper", "gums_lower", "tongue")
@@ -42,6 +50,9 @@ OPEN_JAW = 400.0
 #: Light that reaches even the deepest point (the room's light bounced off the cheeks
 #: and teeth): the floor of the baked shading, so no part is drawn pure black.
 BOUNCE = 0.06
+#: Texels of a ramp (:func:`lit_in_place`) along its light axis: steps of 1/255 of the
+#: light, under one grey level of the 8-bit texture.
+RAMP = 256
 
 
 def sky_directions(n: int) -> np.ndarray:
@@ -217,10 +228,7 @@ def mouth_textures(head: Head, light: dict[str, np.ndarray], seed: int = 0, size
         if len(lit) != part.n_vertices:
             raise InputError(f"{len(lit)} light values for the {part.n_vertices} vertices of '{name}'",
                              where="mouth", fix="find the light on the same head (cavity_light)")
-        if name.startswith("teeth"):
-            base = materials.teeth_texture(128, seed)
-        else:
-            base = materials.mottled_texture(np.asarray(part.colour) * 255, 128, seed)
+        base = materials.mouth_albedo(name, 128, seed)
         source, tris, uv = unwrap(part.vertices, part.triangles, size)
         ids, bary = rasterize_uv(uv, tris, (size, size))
         # The material as it lay over the part before (a front projection), per texel.
@@ -232,4 +240,49 @@ def mouth_textures(head: Head, light: dict[str, np.ndarray], seed: int = 0, size
         texture = fill_empty(shaded(albedo, texel_light), valid)
         out = split_vertices(out, name, source, tris, uv=uv, texture=texture)
         out.parts[name].colour = (1.0, 1.0, 1.0)
+    return out
+
+
+def lit_in_place(head: Head, light: dict[str, np.ndarray], size: int = 128) -> Head:
+    """A copy of ``head`` whose mouth parts show ``light`` through ramp textures, their
+    vertices neither split nor reordered.
+
+    Each lit part gets texture coordinates u = its light (texel centres: 0 at the first
+    of :data:`RAMP` columns, 1 at the last), t = its height seen from the front
+    (:func:`recon.texture.materials.planar_uv`), and a (size, RAMP) texture whose column
+    for light l is the material (:func:`recon.texture.materials.mouth_albedo`, averaged
+    across: the teeth's gradient from gum line to edge kept, the mottle and gaps not)
+    :func:`shaded` by l.
+
+    Parameters
+    ----------
+    head : Head
+    light : mapping of str to (N,) float
+        Per part, each vertex's light (:func:`cavity_light`); parts not given keep theirs.
+    size : int
+        Rows of each ramp (heights on the part).
+
+    Returns
+    -------
+    Head
+        The parts' colours set to white (the texture carries the material).
+    """
+    from . import materials
+
+    out = head.copy()
+    levels = np.linspace(0.0, 1.0, RAMP)
+    for name in MOUTH_PARTS:
+        part = out.parts.get(name)
+        if part is None or name not in light:
+            continue
+        lit = np.asarray(light[name], np.float64)
+        if len(lit) != part.n_vertices:
+            raise InputError(f"{len(lit)} light values for the {part.n_vertices} vertices of '{name}'",
+                             where="mouth", fix="find the light on the same head (cavity_light)")
+        rows = materials.mouth_albedo(name, size).astype(np.float64).mean(axis=1)
+        albedo = np.round(np.broadcast_to(rows[:, None], (size, RAMP, 3))).astype(np.uint8)
+        part.texture = shaded(albedo, np.broadcast_to(levels, (size, RAMP)))
+        u = (np.clip(lit, 0.0, 1.0) * (RAMP - 1) + 0.5) / RAMP
+        part.uv = np.c_[u, materials.planar_uv(part.vertices)[:, 1]]
+        part.colour = (1.0, 1.0, 1.0)
     return out

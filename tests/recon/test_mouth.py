@@ -5,7 +5,8 @@ import pytest
 import trimesh
 
 from mpeg4.errors import InputError
-from recon.texture.mouth import BOUNCE, MOUTH_PARTS, cavity_light, mouth_textures, open_pose, shaded, sky_directions
+from recon.texture.mouth import (BOUNCE, MOUTH_PARTS, RAMP, cavity_light, lit_in_place, mouth_textures, open_pose,
+                                 shaded, sky_directions)
 
 
 def _disc(z: float, radius: float, n: int = 12):
@@ -130,16 +131,62 @@ def test_light_values_must_match_the_part(generic_light):
         mouth_textures(head, {"tongue": light["tongue"][:-3]})
 
 
-def test_an_open_mouth_reads_as_a_mouth(generic_light):
+def _flat(head):
+    """The head with its mouth's parts in flat colours (as the generic head had them)."""
+    from recon.texture.materials import GUM_RGB, TONGUE_RGB
+
+    out = head.copy()
+    for name in MOUTH_PARTS:
+        p = out.parts[name]
+        p.uv = p.texture = None
+        p.colour = (0.96, 0.94, 0.86) if name.startswith("teeth") else TONGUE_RGB if name == "tongue" else GUM_RGB
+    return out
+
+
+@pytest.mark.parametrize("bake", ["atlas", "ramp"])
+def test_an_open_mouth_reads_as_a_mouth(generic_light, bake):
     # The generic head with its mouth textured, from the front: the opening reads far
-    # darker than the lips (0.77 of them with the flat colours, 0.26 lit), the teeth
-    # lighter than the tongue behind them (1.6 flat, 2.7 lit).
+    # darker than the lips (0.77 of them with flat colours, 0.26 lit either way), the
+    # teeth lighter than the tongue behind them (1.6 flat, 2.6-2.7 lit).
     from recon.evaluate.mouth import opening_figures
 
     head, _, light = generic_light
-    flat = opening_figures(head)
-    lit = opening_figures(mouth_textures(head, light))
+    flat = opening_figures(_flat(head))
+    lit = opening_figures(mouth_textures(head, light) if bake == "atlas" else lit_in_place(head, light))
     assert lit.opening_over_lips < 0.5 * flat.opening_over_lips
     assert lit.teeth_over_tongue > 1.3 * flat.teeth_over_tongue
     # The same pixels: the light changed, not what shows.
     assert lit.teeth_share == pytest.approx(flat.teeth_share, abs=0.01) and lit.tongue_share > 0.3
+
+
+def test_a_ramp_shows_each_vertex_its_light_in_place(generic_light):
+    from recon.texture.materials import mouth_albedo
+
+    head, _, light = generic_light
+    out = lit_in_place(head, light)
+    for name in MOUTH_PARTS:
+        before, part = head.parts[name], out.parts[name]
+        # Nothing split or moved: the generic head's vertex order is what its tables use.
+        assert np.array_equal(part.vertices, before.vertices) and np.array_equal(part.triangles, before.triangles)
+        assert part.texture.shape[1] == RAMP and part.colour == (1.0, 1.0, 1.0)
+        # The texel under each vertex is its material's colour at its height, shaded by its
+        # light to within the ramp's step (1/255 of the light) and 8-bit rounding.
+        h, w = part.texture.shape[:2]
+        px = np.c_[part.uv[:, 0] * w - 0.5, (1 - part.uv[:, 1]) * h - 0.5]
+        col, row = np.round(px).astype(int).T
+        assert np.abs(px[:, 0] - col).max() < 0.5 + 1e-9
+        want = shaded(mouth_albedo(name).mean(axis=1).round().astype(np.uint8)[row],
+                      np.clip(light[name], 0, 1)).astype(int)
+        assert np.abs(part.texture[row, col].astype(int) - want).max() <= 2, name
+    with pytest.raises(InputError, match="light values"):
+        lit_in_place(head, {"tongue": light["tongue"][:-3]})
+
+
+def test_the_generic_head_ships_its_mouth_lit():
+    from mpeg4.generic_head import load_generic_head
+    from recon.evaluate.mouth import opening_figures
+
+    head = load_generic_head()
+    for name in MOUTH_PARTS:
+        assert head.parts[name].texture is not None and head.parts[name].uv is not None, name
+    assert opening_figures(head).opening_over_lips < 0.5 * opening_figures(_flat(head)).opening_over_lips
