@@ -26,6 +26,9 @@ annotations, and measures the head against the photos (:mod:`recon.evaluate.real
   ``face_recognition_models``) between each photo and the textured head rendered from its
   camera; ``identity_distance_other_people``: the same between different people's front
   photos, the baseline a render must beat (the usual same-person threshold is 0.6);
+  ``identity_nearest_other_person[person]``: the distance from the person's front photo to
+  the nearest other person's, and ``identity_closer_than_other_people``: for how many
+  builds the render is nearer its photo than that;
 - ``skin_delta_e``: CIEDE2000 between the photo's median skin colour (cheeks, forehead) and
   the albedo texture's, rendered unlit from the front camera; ``skin_delta_e_relit``: the
   same with the render relit as the photo is lit (times the shading the build fitted to the
@@ -357,6 +360,15 @@ def main(argv=None) -> int:
     embeddings = {n: f["_embedding"] for n, f in results.items() if "_embedding" in f and "+" not in n}
     names = sorted(embeddings)
     others = [float(np.linalg.norm(embeddings[a] - embeddings[b])) for i, a in enumerate(names) for b in names[i + 1:]]
+    # Each render against the person's nearest other person: does it look more like its
+    # own photo than anyone else's photo does?
+    closer = []
+    for name, f in results.items():
+        own = name.split("+")[0]
+        near = [float(np.linalg.norm(embeddings[own] - embeddings[b])) for b in names if b != own and own in embeddings]
+        if near and "identity_distance" in f:
+            print(f"identity_nearest_other_person[{name}]: {min(near):.3f}")
+            closer.append(f["identity_distance"] < min(near))
     contact_sheet(sheet, args.sheet)
     print(f"# contact sheet: {args.sheet}")
     if args.front_only:
@@ -381,6 +393,7 @@ def main(argv=None) -> int:
     print(f"profile_line_refit_ipd_pct: {median('profile_line_refit_ipd_pct'):.3f}")
     print(f"identity_distance: {median('identity_distance'):.3f}")
     print(f"identity_distance_other_people: {np.median(others) if others else float('nan'):.3f}")
+    print(f"identity_closer_than_other_people: {sum(closer)} of {len(closer)}")
     print(f"skin_delta_e: {median('skin_delta_e'):.3f}")
     print(f"skin_delta_e_relit: {median('skin_delta_e_relit'):.3f}")
     print(f"skin_delta_e_worst: {worst(results.values(), 'skin_delta_e'):.3f}")
