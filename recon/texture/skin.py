@@ -29,11 +29,11 @@ Texture generation and fitting after Lee and Magnenat-Thalmann (sections 2.2.1â€
 
 The photos' cameras come from the head's 3D feature points and the marked pixels
 (:mod:`recon.texture.cameras`); what the head covers in each photo from rendering it
-(:mod:`mpeg4.render`), which also tells which vertices each camera sees. Once the light
-is taken out, the side photo is brought to the front photo's colour
-(:mod:`recon.texture.exposure`), a shirt over the neck is replaced by the skin above
-its collar (:mod:`recon.texture.clothes`) and the frames of glasses are inpainted out of the
-skin (:mod:`recon.texture.glasses`).
+(:mod:`mpeg4.render`), which also tells which vertices each camera sees. A shirt over the
+neck is painted as the skin around it (:mod:`recon.texture.clothes`) before the light is
+fitted (a shirt in the fit skews the light found for the face); once the light is taken
+out, the side photo is brought to the front photo's colour (:mod:`recon.texture.exposure`)
+and the frames of glasses are inpainted out of the skin (:mod:`recon.texture.glasses`).
 
 References
 ----------
@@ -318,6 +318,14 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
         if not head_masks[key].any():
             raise InputError(f"the head does not show in the {key} photo", where="texture",
                              fix="check the feature points of that photo")
+    # The neck under the collar, not the shirt: filled before the light is fitted, so that
+    # a shirt does not weigh on the fit (the fill carries the neck's own shading down).
+    for key in list(photos):
+        photos[key], covered = remove_clothes(head, photos[key], head_masks[key], cams[key].camera, seen[key],
+                                              normals=skin_normals, skin=skin_to_fit > 0)
+        if covered > 0.01:
+            say(f"the {key} photo shows clothes over {100 * covered:.0f} % of the head: filled from the neck's "
+                f"skin around them")
     lighting = {}
     if delight:
         from .delight import delight_photo
@@ -338,15 +346,6 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     if not front_only and any(light.fallback is None for light in lighting.values()):
         gain = _side_gain(V, skin_normals, skin_to_fit > 0, photos, seen, front, side, seen_sign)
         photos["side"] = apply_gain(photos["side"], gain)
-
-    # The neck under the collar, not the shirt. (After the light is taken out: the fit's
-    # judgement of the photos is left as it was; a shirt still weighs on the fit.)
-    for key in photos:
-        photos[key], covered = remove_clothes(head, photos[key], head_masks[key], cams[key].camera, seen[key],
-                                              normals=skin_normals, skin=skin_to_fit > 0)
-        if covered > 0.01:
-            say(f"the {key} photo shows clothes over {100 * covered:.0f} % of the head: filled from the neck's "
-                f"skin above the collar")
 
     # The frames of glasses, out of the skin (the lenses cannot be: their tint stays).
     photos, glasses = remove_glasses(head, photos, {k: cams[k].camera for k in photos}, seen, skin_normals,

@@ -4,7 +4,7 @@ carried down; and on a dressed synthetic person, the neck's texture against its 
 import numpy as np
 import pytest
 
-from recon.texture.clothes import clothes_mask, fill_from_above, skin_model, skin_pixels
+from recon.texture.clothes import clothes_mask, fill_from_skin, skin_model, skin_pixels
 
 SKIN = np.array([196.0, 150.0, 128.0])
 SHIRT = np.array([40.0, 60.0, 130.0])
@@ -47,14 +47,45 @@ def test_the_fill_has_the_necks_colour_and_grain():
     mask = clothes_mask(photo, head, model, chin_row=40.0)
     skin = np.zeros_like(mask)
     skin[40:] = head[40:] & skin_pixels(photo, model, slice(40, None)) & ~mask[40:]
-    out = fill_from_above(photo, mask, skin, band_px=30)
+    out = fill_from_skin(photo, mask, skin)
     assert np.array_equal(out[~mask], photo[~mask])  # nothing else touched
     filled = out[mask].astype(float)
     neck = photo[100:130, 20:140].reshape(-1, 3).astype(float)  # the skin right above the collar
     assert np.abs(filled.mean(axis=0) - neck.mean(axis=0)).max() < 4.0
     # The grain is the skin's own (5 grey levels of noise), not a smooth wash nor the shirt.
     assert 0.7 < filled.std(axis=0).mean() / neck.std(axis=0).mean() < 1.5
-    assert skin_pixels(out, model)[mask].mean() > 0.99
+    # As much of it passes for skin by the face's model as the neck's own skin does.
+    assert skin_pixels(out, model)[mask].mean() > skin_pixels(photo, model)[100:130, 20:140].mean() - 0.03
+
+
+def test_the_fill_carries_the_shading_in_from_all_round():
+    # Skin shaded across and down (30 and 40 grey levels), with grain, round a patch of
+    # cloth: the fill's shading is the plane the skin around it lies on (Laplace's equation
+    # keeps a plane), its grain as strong as the skin's, and nothing steps at its rim.
+    import cv2
+
+    rng = np.random.default_rng(3)
+    h, w = 160, 200
+    ys, xs = np.mgrid[:h, :w].astype(float)
+    plane = SKIN[None, None] - (30.0 * xs / w + 40.0 * ys / h)[..., None]
+    photo = np.clip(plane + rng.normal(0, 4, (h, w, 3)), 0, 255).astype(np.uint8)
+    mask = np.zeros((h, w), bool)
+    mask[50:120, 60:150] = True
+    photo[mask] = SHIRT.astype(np.uint8)
+    out = fill_from_skin(photo, mask, ~mask)
+    assert np.array_equal(out[~mask], photo[~mask])
+    smooth = cv2.GaussianBlur(out.astype(np.float32), (0, 0), 4.0)
+    inner = np.zeros_like(mask)
+    inner[60:110, 70:140] = True  # away from the rim, where the blur would mix in the skin
+    assert np.abs(smooth[inner] - plane[inner]).mean() < 2.0
+    grain = (out.astype(float) - plane)[mask]
+    assert 0.7 < grain.std(axis=0).mean() / 4.0 < 1.3
+    # Across the rim, a step no larger than the grain's between neighbours in the skin.
+    rim = np.abs(out[50:120, 59].astype(float) - out[50:120, 60]).mean() + \
+        np.abs(out[50:120, 150].astype(float) - out[50:120, 149]).mean()
+    skin = np.abs(out[10:40, 59].astype(float) - out[10:40, 60]).mean() + \
+        np.abs(out[10:40, 150].astype(float) - out[10:40, 149]).mean()
+    assert rim < 1.5 * skin
 
 
 def test_no_skin_no_model_and_nothing_to_fill():
@@ -62,7 +93,7 @@ def test_no_skin_no_model_and_nothing_to_fill():
     assert skin_model(photo, np.array([[5.0, 5.0]] * 10)) is None
     assert skin_model(photo, np.full((50, 2), -100.0)) is None  # outside the photo
     none = np.zeros(head.shape, bool)
-    assert fill_from_above(photo, none, head, 20) is photo
+    assert fill_from_skin(photo, none, head) is photo
 
 
 def _neck_and_face_error(result, sp, data):
@@ -95,9 +126,10 @@ def _neck_and_face_error(result, sp, data):
 def test_a_shirt_is_not_painted_on_the_neck(ict_npz, monkeypatch):
     """A synthetic person in a shirt with a collar (recon.evaluate.dressing), textured with
     and without the fill: the neck below the chin against the painted skin. With the shirt
-    painted on it, 70 grey levels off; filled, 44 (no shirt: 5). The rest of the face is
-    not touched (off by 33 either way: the shirt weighs on the fitted light, which the fill
-    comes after)."""
+    painted on it, 70 grey levels off; filled, 5.7 (no shirt: 5; rows of skin copied down
+    each column, after the light was fitted, left it 44). The fill comes before the light
+    is fitted, so the face gains too: off by 32 with the shirt in the fit, 11
+    without."""
     import recon.texture.skin as skin_module
     from recon.build import PhotoPair, build_head
     from recon.evaluate.dressing import Look
@@ -114,5 +146,5 @@ def test_a_shirt_is_not_painted_on_the_neck(ict_npz, monkeypatch):
     painted = build_head(pair, ipd_mm=sp.person.ipd_mm, focal_px=sp.focal_px, texture_size=1024)
     neck, face = _neck_and_face_error(filled, sp, data)
     neck0, face0 = _neck_and_face_error(painted, sp, data)
-    assert neck < 0.75 * neck0, (neck, neck0)
-    assert abs(face - face0) < 0.5, (face, face0)
+    assert neck < 0.25 * neck0, (neck, neck0)
+    assert face < 0.5 * face0, (face, face0)
