@@ -20,9 +20,10 @@ the photo by the fitted shading.
   encoding keeps albedo × shading a product, so the division holds either way.
 * The fit knows only the scale of albedo × light intensity, not each. The shading is
   scaled so that the albedo's median brightness over the fitted skin that faces the camera
-  (within 45°: the cheeks, the forehead) is the photo's: the albedo keeps the photo's skin
-  colour, and only the light's variation over the face is taken out. (A shading of mean 1 keeps it only under an even light: under a strong one
-  the lit cheeks came out dark and grey, 10 ΔE off the photo. Scaling it to its
+  (within 45°, above the chin: the cheeks, the forehead; not the neck, in the chin's
+  shadow) is the photo's: the albedo keeps the photo's skin colour, and only the light's
+  variation over the face is taken out. (A shading of mean 1 keeps it only under an even
+  light: under a strong one the lit cheeks came out dark and grey, 10 ΔE off the photo. Scaling it to its
   brightest value instead would make the albedo the colour facing the light squarely, but
   one bright spot — a highlight on glasses, a shiny forehead — then brightens the whole
   face: a dark skin came out pale.)
@@ -238,7 +239,7 @@ def fit_mask(head: Head) -> np.ndarray:
 
 def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, weight: np.ndarray,
                  stride: int = _STRIDE, iterations: int = 8, ridge: float = 1e-3,
-                 smooth_px: float = _SMOOTH_PX) -> Lighting:
+                 smooth_px: float = _SMOOTH_PX, face: np.ndarray | None = None) -> Lighting:
     """Fit second-order spherical-harmonic lighting to a photo's skin.
 
     Parameters
@@ -260,6 +261,9 @@ def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, 
         sees over part of the sphere only.
     smooth_px : float
         Gaussian blur of the shading inside the head, pixels.
+    face : (H, W) bool, optional
+        The face (above the chin): where the albedo's brightness is held to the photo's.
+        All the fitted skin when None.
 
     Returns
     -------
@@ -316,11 +320,15 @@ def fit_lighting(photo: np.ndarray, normals: np.ndarray, head_mask: np.ndarray, 
     clamped = np.clip(full, MIN_SHADING, 1.25)
     mean = float(clamped[sub][skin].mean()) if skin.any() else 1.0
     # Scaled so that the albedo keeps the photo's median skin brightness where the face is
-    # seen squarely (the skin the fit kept that faces the camera within 45°: the cheeks and
-    # forehead, not the sides and the neck seen edge-on): a shading whose mean is 1 does so
-    # only under an even light, and under a strong one the lit cheeks come out dark and grey.
+    # seen squarely (the skin the fit kept that faces the camera within 45°, above the chin:
+    # the cheeks and forehead, not the sides seen edge-on nor the neck, which faces the
+    # camera too but lies in the chin's shadow and under collars): a shading whose mean is
+    # 1 does so only under an even light, and under a strong one the lit cheeks come out
+    # dark and grey.
     kept = w > 0
     facing = kept & (nz[sub][sel] > np.cos(np.radians(45.0)))
+    if face is not None:
+        facing &= face[sub][sel]
     kept = facing if facing.sum() >= 100 else kept
     ratio = y[kept] / clamped[sub][sel][kept]
     level = float(np.median(ratio) / np.median(y[kept])) if kept.any() else 1.0 / mean
@@ -389,7 +397,11 @@ def delight_photo(head: Head, photo: np.ndarray, camera: Camera, mask: np.ndarra
     box = np.s_[y0:y1, x0:x1]
     weight = skin_weight(head, camera, fit_mask(head) if mask is None else mask, _STRIDE, (x0, y0, x1, y1))
     crop = photo[box]
-    light = fit_lighting(crop, _normal_planes(encoded[box], head_mask[box]), head_mask[box], weight)
+    face = None
+    if "2.1" in head.feature_points:
+        chin = float(camera.project(head.fp_position("2.1")[None])[0, 1]) - y0
+        face = np.broadcast_to((np.arange(y1 - y0) < chin)[:, None], (y1 - y0, x1 - x0))
+    light = fit_lighting(crop, _normal_planes(encoded[box], head_mask[box]), head_mask[box], weight, face=face)
     # Rounded and saturated to bytes by OpenCV (the quotient is never negative, so its
     # absolute value is itself).
     albedo = cv2.convertScaleAbs(cv2.divide(crop.astype(np.float32), cv2.merge([light.shading] * 3)))
