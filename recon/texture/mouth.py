@@ -191,6 +191,20 @@ def shaded(albedo: np.ndarray, light: np.ndarray) -> np.ndarray:
     return np.round(255.0 * _to_srgb(lin * k[..., None])).astype(np.uint8)
 
 
+def _lit_parts(head: Head, light: dict[str, np.ndarray]):
+    """(name, part, (N,) light) for each mouth part of ``head`` that ``light`` gives, its
+    length checked against the part's vertices."""
+    for name in MOUTH_PARTS:
+        part = head.parts.get(name)
+        if part is None or name not in light:
+            continue
+        lit = np.asarray(light[name], np.float64)
+        if len(lit) != part.n_vertices:
+            raise InputError(f"{len(lit)} light values for the {part.n_vertices} vertices of '{name}'",
+                             where="mouth", fix="find the light on the same head (cavity_light)")
+        yield name, part, lit
+
+
 def mouth_textures(head: Head, light: dict[str, np.ndarray], seed: int = 0, size: int = 256) -> Head:
     """A copy of ``head`` whose mouth parts carry their own atlas and a texture with
     ``light`` baked in.
@@ -220,14 +234,7 @@ def mouth_textures(head: Head, light: dict[str, np.ndarray], seed: int = 0, size
     from .bake import fill_empty, interpolate, rasterize_uv, uv_to_pixels
 
     out = head
-    for name in MOUTH_PARTS:
-        part = out.parts.get(name)
-        if part is None or name not in light:
-            continue
-        lit = np.asarray(light[name], np.float64)
-        if len(lit) != part.n_vertices:
-            raise InputError(f"{len(lit)} light values for the {part.n_vertices} vertices of '{name}'",
-                             where="mouth", fix="find the light on the same head (cavity_light)")
+    for name, part, lit in _lit_parts(head, light):
         base = materials.mouth_albedo(name, 128, seed)
         source, tris, uv = unwrap(part.vertices, part.triangles, size)
         ids, bary = rasterize_uv(uv, tris, (size, size))
@@ -271,14 +278,7 @@ def lit_in_place(head: Head, light: dict[str, np.ndarray], size: int = 128) -> H
 
     out = head.copy()
     levels = np.linspace(0.0, 1.0, RAMP)
-    for name in MOUTH_PARTS:
-        part = out.parts.get(name)
-        if part is None or name not in light:
-            continue
-        lit = np.asarray(light[name], np.float64)
-        if len(lit) != part.n_vertices:
-            raise InputError(f"{len(lit)} light values for the {part.n_vertices} vertices of '{name}'",
-                             where="mouth", fix="find the light on the same head (cavity_light)")
+    for name, part, lit in _lit_parts(out, light):
         rows = materials.mouth_albedo(name, size).astype(np.float64).mean(axis=1)
         albedo = np.round(np.broadcast_to(rows[:, None], (size, RAMP, 3))).astype(np.uint8)
         part.texture = shaded(albedo, np.broadcast_to(levels, (size, RAMP)))
