@@ -140,9 +140,9 @@ def fill_from_skin(photo: np.ndarray, mask: np.ndarray, skin: np.ndarray, grain_
        skin (each column with its own band) left a stripe for every row and a step
        between columns.
     2. Grain: the skin's detail (the photo less its Gaussian blur of 3 pixels, over the
-       skin only; its strongest 5 %, edges, left out) has a 3 × 3 colour covariance; white noise blurred by ``grain_px``,
-       mixed by that covariance's Cholesky factor, matches it (pores and the camera's
-       noise, mostly in lightness).
+       skin only; its strongest 5 %, edges, left out) has a 3 × 3 colour covariance;
+       white noise blurred by ``grain_px``, mixed by that covariance's Cholesky factor,
+       matches it (pores and the camera's noise, mostly in lightness).
 
     Parameters
     ----------
@@ -188,7 +188,7 @@ def fill_from_skin(photo: np.ndarray, mask: np.ndarray, skin: np.ndarray, grain_
     free = ~known
     index = -np.ones((gh, gw), np.int64)
     index[free] = np.arange(free.sum())
-    rows, cols, vals = [], [], []
+    rows, cols = [], []
     rhs = np.zeros((free.sum(), 3))
     degree = np.zeros(free.sum())
     fy, fx = np.nonzero(free)
@@ -261,7 +261,7 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
     head : Head
         Fitted to the photo, with the chin (2.1).
     photo : (H, W, 3) uint8
-        RGB, as it goes into the texture (de-lit or not).
+        RGB, as taken (the texture fills the clothes before it fits the photo's light).
     head_mask : (H, W) bool
         Where the photo shows the head.
     camera : mpeg4.render.Camera
