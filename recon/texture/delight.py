@@ -23,10 +23,10 @@ the photo by the fitted shading.
   (within 45°, above the chin: the cheeks, the forehead; not the neck, in the chin's
   shadow) is the photo's: the albedo keeps the photo's skin colour, and only the light's
   variation over the face is taken out. (A shading of mean 1 keeps it only under an even
-  light: under a strong one the lit cheeks came out dark and grey, 10 ΔE off the photo. Scaling it to its
-  brightest value instead would make the albedo the colour facing the light squarely, but
-  one bright spot — a highlight on glasses, a shiny forehead — then brightens the whole
-  face: a dark skin came out pale.)
+  light: under a strong one the lit cheeks came out dark and grey, 10 ΔE off the photo.
+  Scaling it to its brightest value instead would make the albedo the colour facing the
+  light squarely, but one bright spot — a highlight on glasses, a shiny forehead — then
+  brightens the whole face: a dark skin came out pale.)
 * The result is judged before it is used (:func:`judge`): an implausible light (most of
   the skin in deep shadow) or an albedo that leaves the photo's range (skin burnt out to
   white where the photo was not) falls back to the photo as it is, with the reason.
