@@ -43,7 +43,7 @@ sys.path.insert(0, str(ROOT))
 from mpeg4.catalogue import FEATURE_POINTS, FP_IDS  # noqa: E402
 from mpeg4.head import FeaturePointBinding, Head, Part, SparseDisplacement  # noqa: E402
 from recon.texture.materials import eye_texture, eye_uv  # noqa: E402
-from recon.texture.mouth import OPEN_JAW, cavity_light, lit_in_place  # noqa: E402
+from recon.texture.mouth import OPEN_JAW, bared_pose, brightest_light, lit_in_place  # noqa: E402
 
 DEFAULT_NPZ = ROOT.parent / "shared" / "data" / "ict_facekit" / "ict_facekit.npz"
 DEFAULT_OUT = ROOT / "data" / "generic_head" / "generic_head.glb"
@@ -402,10 +402,12 @@ def lit_mouth(head: Head) -> Head:
     """The head with teeth, gums and tongue lit as the open mouth lets light in
     (:mod:`recon.texture.mouth`, through ramp textures: the vertices keep ICT's order),
     the light found with the jaw opened by ICT's ``jawOpen`` as far as FAP 3 at
-    ``OPEN_JAW`` opens it (the chin, 2.1, down by that many MNS)."""
+    ``OPEN_JAW`` opens it (the chin, 2.1, down by that many MNS) and with the lips drawn
+    back from the teeth (``bared_pose``), the brighter of the two kept."""
     drop = head.fp_position("2.1")[1] - head.fp_position("2.1", head.morphed({"jawOpen": 1.0}))[1]
-    posed = head.morphed({"jawOpen": OPEN_JAW * head.fapu.MNS0 / 1024.0 / drop})
-    return lit_in_place(head, cavity_light(posed, {n: p.triangles for n, p in head.parts.items()}))
+    opened = head.morphed({"jawOpen": OPEN_JAW * head.fapu.MNS0 / 1024.0 / drop})
+    light = brightest_light([opened, bared_pose(head)], {n: p.triangles for n, p in head.parts.items()})
+    return lit_in_place(head, light)
 
 
 def main(argv=None) -> int:

@@ -8,10 +8,14 @@ does not depend on the viewer and moves little as the mouth talks, so it is bake
 the parts' textures, where every renderer (ours, three.js, Blender) shows it:
 
 1. :func:`open_pose`: the head with its jaw open (FAP 3, :data:`OPEN_JAW`) by the generic
-   head's animation tables, the mouth as it is seen when it shows its inside;
+   head's animation tables, the mouth as it is seen when it shows its inside; and
+   :func:`bared_pose`: the lips drawn back from the closed teeth (:data:`BARED`), as a
+   smile or a snarl shows their fronts, which the upper lip shades when the jaw drops;
 2. :func:`cavity_light`: for each vertex of the mouth's parts, the share of the light
    from a uniform sky that reaches it (cosine-weighted ambient occlusion), found by
-   depth renders of the whole head from many directions;
+   depth renders of the whole head from many directions; each vertex keeps the most it
+   gets over the poses (:func:`brightest_light`: a texture holds one light, and a
+   surface is seen when the pose shows it);
 3. :func:`mouth_textures`: each part unwrapped by xatlas (every triangle its own texels),
    its material (:mod:`recon.texture.materials`: enamel, gum, tongue) times that light
    baked into its texture.
@@ -39,14 +43,17 @@ from mpeg4.head import Head
 from mpeg4.render import Camera, RenderMesh, vertex_normals
 from mpeg4.unlit import render_depth
 
-__all__ = ["MOUTH_PARTS", "OPEN_JAW", "BOUNCE", "RAMP", "sky_directions", "open_pose", "cavity_light", "shaded",
-           "mouth_textures", "lit_in_place"]
+__all__ = ["MOUTH_PARTS", "OPEN_JAW", "BARED", "BOUNCE", "RAMP", "sky_directions", "open_pose", "bared_pose",
+           "cavity_light", "brightest_light", "shaded", "mouth_textures", "lit_in_place"]
 
 #: The parts whose textures are made here.
 MOUTH_PARTS = ("teeth_upper", "teeth_lower", "gums_upper", "gums_lower", "tongue")
 #: FAP 3 (open_jaw, MNS) at which the light is found: a mouth open as in a broad vowel
 #: (about 15 mm between the incisors on the generic head).
 OPEN_JAW = 400.0
+#: The morph targets (ICT's, ARKit's names) that draw the lips back from the teeth, and
+#: their weights: the upper lip raised, the lower one lowered, the jaw closed.
+BARED = {"mouthUpperUp_L": 1.0, "mouthUpperUp_R": 1.0, "mouthLowerDown_L": 1.0, "mouthLowerDown_R": 1.0}
 #: Light that reaches even the deepest point (the room's light bounced off the cheeks
 #: and teeth): the floor of the baked shading, so no part is drawn pure black.
 BOUNCE = 0.06
@@ -106,6 +113,14 @@ def open_pose(head: Head, fat=None, value: float = OPEN_JAW) -> dict[str, np.nda
     out = {name: posed[name][index] for name, index in originals.items()}
     out.update({name: p.vertices.copy() for name, p in head.parts.items() if name not in out})
     return out
+
+
+def bared_pose(head: Head) -> dict[str, np.ndarray] | None:
+    """Part name → (N, 3) vertices (metres) of the head with its lips drawn back from the
+    teeth by its morph targets :data:`BARED`; None when it lacks them."""
+    if not all(name in head.morph_targets for name in BARED):
+        return None
+    return head.morphed(BARED)
 
 
 def cavity_light(vertices: dict[str, np.ndarray], triangles: dict[str, np.ndarray],
@@ -168,6 +183,18 @@ def cavity_light(vertices: dict[str, np.ndarray], triangles: dict[str, np.ndarra
         n = len(vertices[k])
         out[k] = share[start:start + n]
         start += n
+    return out
+
+
+def brightest_light(poses, triangles: dict[str, np.ndarray], parts=MOUTH_PARTS) -> dict[str, np.ndarray]:
+    """Part name → (N,) the most light (:func:`cavity_light`) each vertex of ``parts`` gets
+    over the ``poses`` (a sequence of part name → vertices; None entries skipped)."""
+    out = {}
+    for posed in poses:
+        if posed is None:
+            continue
+        for name, values in cavity_light(posed, triangles, parts).items():
+            out[name] = np.maximum(out[name], values) if name in out else values
     return out
 
 

@@ -514,8 +514,8 @@ def textured_head(head: Head, skin: SkinTexture, front_photo: np.ndarray, seed: 
         part.colour = (1.0, 1.0, 1.0)
     # The mouth's parts are lit as the open mouth lets light in, found on the head before
     # its skin was split (its topology is the generic head's, whose tables open the jaw).
-    posed = mouth.open_pose(head)
-    light = mouth.cavity_light(posed, {name: p.triangles for name, p in head.parts.items()})
+    light = mouth.brightest_light([mouth.open_pose(head), mouth.bared_pose(head)],
+                                  {name: p.triangles for name, p in head.parts.items()})
     out = mouth.mouth_textures(out, light, seed)
     out.metadata = dict(out.metadata, texture={"regions": {r: int((skin.triangle_region == k).sum())
                                                            for k, r in enumerate(REGIONS)},

@@ -5,8 +5,8 @@ import pytest
 import trimesh
 
 from mpeg4.errors import InputError
-from recon.texture.mouth import (BOUNCE, MOUTH_PARTS, RAMP, cavity_light, lit_in_place, mouth_textures, open_pose,
-                                 shaded, sky_directions)
+from recon.texture.mouth import (BOUNCE, MOUTH_PARTS, RAMP, bared_pose, brightest_light, cavity_light, lit_in_place,
+                                 mouth_textures, open_pose, shaded, sky_directions)
 
 
 def _disc(z: float, radius: float, n: int = 12):
@@ -89,6 +89,27 @@ def test_the_light_falls_off_into_the_mouth(generic_light):
     t = head.parts["teeth_upper"].vertices
     front, molars = t[:, 2] >= np.quantile(t[:, 2], 0.9), t[:, 2] <= np.quantile(t[:, 2], 0.3)
     assert light["teeth_upper"][front].mean() > 5 * light["teeth_upper"][molars].mean()
+
+
+def test_the_bared_teeth_keep_the_light_their_fronts_get(generic_light):
+    # With the jaw dropped the upper lip shades the incisors' fronts; drawn back from the
+    # closed teeth, it does not: the baked light keeps the brighter of the two, so teeth a
+    # smile shows are not drawn in the open mouth's shadow.
+    head, posed, light = generic_light
+    tris = {n: p.triangles for n, p in head.parts.items()}
+    bared = bared_pose(head)
+    assert bared is not None
+    both = brightest_light([posed, None, bared], tris)
+    alone = cavity_light(bared, tris)
+    for name in MOUTH_PARTS:
+        assert np.array_equal(both[name], np.maximum(light[name], alone[name])), name
+    t = head.parts["teeth_upper"].vertices
+    fronts = t[:, 2] >= np.quantile(t[:, 2], 0.9)
+    assert both["teeth_upper"][fronts].mean() > 1.2 * light["teeth_upper"][fronts].mean()
+    # A head without those morph targets has no bared pose.
+    from mpeg4.head import Head
+
+    assert bared_pose(Head(head.parts, head.feature_points)) is None
 
 
 def test_mouth_textures_bake_the_light(generic_light):
