@@ -2,6 +2,7 @@
 again for the other facing (detected again, or mirrored), and a facing too unsure for
 recon build still gives the page detected points, flagged for checking."""
 
+import dataclasses
 import importlib.util
 
 import numpy as np
@@ -95,17 +96,26 @@ def test_turning_detects_again_for_the_other_facing_and_back(tmp_path):
 
 
 @pytest.mark.skipif(not HAS_MEDIAPIPE, reason="mediapipe is not installed")
-def test_an_unsure_facing_still_gives_detected_points_flagged_for_checking(tmp_path):
+def test_an_unsure_facing_still_gives_detected_points_flagged_for_checking(tmp_path, monkeypatch):
     from recon.evaluate.ict import default_ict_path
 
     if not default_ict_path().exists():
         pytest.skip(f"needs the ICT FaceKit at {default_ict_path()}")
     from recon.annotate.placement import initial_annotation
     from recon.evaluate.synthetic import hard_pair
-    from recon.landmarks import detect
-    from recon.landmarks.facing import UnsureFacing
+    from recon.landmarks import detect, facing
+    from recon.landmarks.facing import SURE, UnsureFacing
 
-    # A dressed person whose profile the cues disagree on (hair, a textured background).
+    # A dressed person whose profile the cues disagree on (hair, a textured background):
+    # its confidence lies near SURE (0.20 or 0.26 as a few pixels of the render change), so
+    # it is held under SURE here; what is tested is what follows an unsure facing.
+    found_facing = facing.profile_facing
+
+    def disagreeing(*args, **kwargs):
+        found = found_facing(*args, **kwargs)
+        return found if found.given else dataclasses.replace(found, confidence=min(found.confidence, SURE / 2))
+
+    monkeypatch.setattr(facing, "profile_facing", disagreeing)
     pair = hard_pair(3)
     front, side = tmp_path / "front.png", tmp_path / "side.png"
     Image.fromarray(pair.front).save(front)
