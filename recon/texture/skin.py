@@ -312,8 +312,10 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
         if d.shape != photo.shape[:2]:
             raise InputError(f"the {key} photo is {photo.shape[1]}x{photo.shape[0]} but its camera is "
                              f"{d.shape[1]}x{d.shape[0]}", where="texture", fix="fit the camera to this photo")
-        # The backdrop is found in the photo as taken (de-lit, it would no longer match its border).
-        head_mask = np.isfinite(d) & ~photo_background(photo)
+        # The backdrop is found in the photo as taken (de-lit, it would no longer match its
+        # border); where the selfie segmentation runs, only the person counts (a block wall's
+        # mortar lines or a busy room beside a skull the fitted head overhangs is not hair).
+        head_mask = _person(photo, np.isfinite(d) & ~photo_background(photo))
         head_masks[key] = cv2.erode(head_mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
         if not head_masks[key].any():
             raise InputError(f"the head does not show in the {key} photo", where="texture",
