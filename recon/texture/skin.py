@@ -417,14 +417,14 @@ def _towards(vertices: np.ndarray, front: FittedCamera, side: FittedCamera) -> d
 def _skin_model_layers(front_layer, masks, photo, head_mask, front: FittedCamera, pts, A) -> list[np.ndarray]:
     """The two side layers of a texture from a front photo alone, painted by the skin model
     (:mod:`recon.texture.skin_model`); ``masks`` change in place: what the photo does not
-    show of the person (past its edge, the backdrop beside an overhanging skull) goes to
-    the skin model too."""
+    show of the person (``head_mask``: past its edge, the backdrop beside an overhanging
+    skull) goes to the skin model too."""
     from .skin_model import fit_skin_model, skin_model_layer
 
     size = front_layer.shape[0]
     # Where the photo shows the person, in texture space: nothing past the photo's edge
     # (its border row repeated would streak), no wall (it is not skin).
-    seen = cv2.warpAffine(_person(photo, head_mask).astype(np.uint8), A[:2], (size, size),
+    seen = cv2.warpAffine(head_mask.astype(np.uint8), A[:2], (size, size),
                           flags=cv2.INTER_NEAREST, borderValue=0) > 0
     masks[1] |= masks[0] & ~seen
     masks[0] &= seen
