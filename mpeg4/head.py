@@ -115,8 +115,9 @@ class FeaturePointBinding:
             raise InputError(f"feature point weights sum to {sum(self.weights):.6g}, expected 1")
 
     def position(self, vertices: np.ndarray) -> np.ndarray:
-        """(3,) position of the point on ``vertices`` (the part's (N, 3) array)."""
-        return np.asarray(self.weights) @ vertices[list(self.vertices)]
+        """(3,) position of the point on ``vertices`` (the part's (N, 3) array); of any
+        per-vertex array (N, ...), the point's value, shape (...)."""
+        return np.tensordot(np.asarray(self.weights, dtype=np.float64), np.asarray(vertices)[list(self.vertices)], 1)
 
 
 @dataclass

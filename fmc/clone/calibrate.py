@@ -72,8 +72,7 @@ def calibrate_tables(head: Head, fat: FAT | None = None, limits: tuple[float, fl
         dense = np.zeros((len(head.parts[binding.part].vertices),) + mesh.displacements.shape[1:])
         dense[mesh.indices] = mesh.displacements
         # Per interval, the point's motion along the axis per FAP unit, in units of the FAP's unit.
-        along = np.tensordot(binding.weights, dense[list(binding.vertices)], 1) @ np.asarray(FAPS[n].axis_vector,
-                                                                                           dtype=np.float64)
+        along = binding.position(dense) @ np.asarray(FAPS[n].axis_vector, dtype=np.float64)
         factor = np.ones(len(along))
         for i, a in enumerate(along):
             if a == 0.0:  # this interval moves nothing (a unidirectional FAP's other side)
