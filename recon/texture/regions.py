@@ -20,6 +20,7 @@ from collections.abc import Mapping
 
 import cv2
 import numpy as np
+from scipy.spatial import ConvexHull
 
 from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.unlit import render_depth
@@ -31,7 +32,7 @@ from .cameras import FittedCamera
 from .warp import FEATURE_LINE, convex_outline, sections
 
 __all__ = ["REGIONS", "FRONT", "SEEN", "MIRRORED", "HIDDEN", "FOLD", "line_ids", "feature_line", "view_line",
-           "feature_polygon",
+           "feature_polygon", "feature_envelope",
            "vertex_regions", "line_depth", "triangle_regions", "split_by_region"]
 
 _NECK_STEP = 0.01  # metres between the neck line's points
@@ -115,6 +116,12 @@ def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, ski
     One split per band, weighed by area, so that the side of the nose or a hollow at the
     temple moves it only by their own area instead of cutting the face there.
 
+    The split never falls inside the face's features (:func:`feature_envelope`: the brows,
+    eyes, nose and lips of that side, and a margin): a side photo's pixels land there worst
+    (the eye sits deep in its socket, the lids and brows are seen edge-on), and on the side
+    the side photo does not show, its mirror image would paint the *other* eye; an eye
+    made of two photos, or of the wrong one, is what a viewer sees first.
+
     Parameters
     ----------
     points3d, skin_vertices, skin_triangles, side
@@ -155,8 +162,9 @@ def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, ski
                                                                             v[t[:, 2]] - v[t[:, 0]]), axis=1), 3))
     ahead = np.flatnonzero((v[:, 0] * sign > 0) & (v[:, 2] >= z_ear))
     heights = np.arange(ear[top - 1, 1] - step, ear[-1, 1] - 0.5 * step, -step)
+    inner = feature_envelope(points3d, side, heights)
     line = []
-    for y in heights:
+    for y, lim in zip(heights, inner):
         k = ahead[np.abs(v[ahead, 1] - y) <= 0.5 * step]
         if len(k) < 2:
             continue
@@ -164,12 +172,71 @@ def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, ski
         w, good = area[k], better[k]
         # Split the band where the least skin area is left with the photo that sees it worse:
         # vertices 0..j front, the rest side (a hollow at the temple or the side of the
-        # nose only moves the split by its own area).
+        # nose only moves the split by its own area), never inside the features.
         cost = np.cumsum(w * ~good) + (np.sum(w * good) - np.cumsum(w * good))
+        cost[:max(int(np.searchsorted(v[k, 0] * sign, lim)) - 1, 0)] = np.inf
         j = int(np.argmin(cost))
         line.append([v[k[j], 0], y, v[k[j], 2]])
     points = np.vstack([ear[:top], np.array(line).reshape(-1, 3)])
     return points, np.r_[ear_fp[:top], np.zeros(len(line), bool)]
+
+
+#: The face's features whose texture comes from one photo whole: brows, eyes, lips, nose.
+_FEATURE_GROUPS = (3, 4, 8, 9)
+#: How far beyond its feature points a feature's skin reaches, in eye separations (ES0):
+#: the upper lid's fold and the crow's feet run about 5 mm past the eye's outer corner,
+#: and the multiresolution blend spreads a seam over about as much again.
+FEATURE_MARGIN_ES = 0.15
+
+
+def feature_envelope(points3d: Mapping[str, np.ndarray], side: str, heights: np.ndarray,
+                     margin: float | None = None) -> np.ndarray:
+    """How far out from the midline the face's features reach on one side, per height.
+
+    The convex hull, in (height, distance from the midline), of the brow, eye, lip and nose
+    feature points on ``side`` and the midline (MPEG-4 groups 3, 4, 8 and 9), widened by
+    ``margin``.
+
+    Parameters
+    ----------
+    points3d : mapping of str to (3,) float
+        The head's feature points, metres (x to the head's left, y up).
+    side : {"L", "R"}
+        ``"L"``: x > 0.
+    heights : (K,) float
+        Metres.
+    margin : float, optional
+        Metres; :data:`FEATURE_MARGIN_ES` eye separations (3.5 to 3.6) by default.
+
+    Returns
+    -------
+    (K,) float64
+        Distance from the midline, metres; -inf at heights above or below every feature
+        (nothing to keep there).
+    """
+    sign = 1.0 if side == "L" else -1.0
+    own = [np.asarray(p, float) for i, p in points3d.items()
+           if i in FEATURE_POINTS and FEATURE_POINTS[i].group in _FEATURE_GROUPS
+           and FEATURE_POINTS[i].side in (side, "C")]
+    heights = np.asarray(heights, float)
+    out = np.full(len(heights), -np.inf)
+    if len(own) < 3:
+        return out
+    if margin is None:
+        es = (np.linalg.norm(np.asarray(points3d["3.5"]) - np.asarray(points3d["3.6"]))
+              if "3.5" in points3d and "3.6" in points3d else 0.063)
+        margin = FEATURE_MARGIN_ES * es
+    p = np.array([[q[1], max(q[0] * sign, 0.0)] for q in own])
+    p = np.vstack([p, [[p[:, 0].max(), 0.0], [p[:, 0].min(), 0.0]]])  # closed at the midline
+    hull = p[ConvexHull(p).vertices]
+    a, b = hull, np.roll(hull, -1, axis=0)
+    for k, y in enumerate(heights):
+        lo, hi = np.minimum(a[:, 0], b[:, 0]), np.maximum(a[:, 0], b[:, 0])
+        e = (lo <= y) & (y <= hi) & (hi > lo)
+        if e.any():
+            t = (y - a[e, 0]) / (b[e, 0] - a[e, 0])
+            out[k] = np.max(a[e, 1] + t * (b[e, 1] - a[e, 1])) + margin
+    return out
 
 
 def feature_polygon(front: FittedCamera, left: np.ndarray, right: np.ndarray) -> np.ndarray:

@@ -235,3 +235,40 @@ def test_a_side_photo_registered_worse_gives_less_of_the_cheek(example):
     # The build records both registrations; the example's cameras fit within a few mm.
     reg = result.skin.registration_m
     assert 0 < reg[0] < 0.005 and 0 < reg[1] < 0.005
+
+
+def test_the_view_line_never_cuts_into_the_eyes_brows_nose_or_lips(example, monkeypatch):
+    # A front photo registered far worse than the side one gives the side photo all the skin
+    # it sees more squarely, but never a piece of an eye, brow, nostril or lip: those come
+    # from the front photo whole (the mirrored side would paint the other eye there).
+    from mpeg4.render import vertex_normals
+    from recon.texture import regions
+    from recon.texture.regions import FEATURE_MARGIN_ES, feature_envelope, view_line
+
+    _, result = example
+    head, cams = result.head, result.skin.cameras
+    v, t = head.skin.vertices, head.skin.triangles
+    n = vertex_normals(v, t)
+    pts = head.fp_positions()
+    centre = v.mean(axis=0, keepdims=True)
+    to_front, to_side = cams["front"].camera.towards(centre)[0], cams["side"].camera.towards(centre)[0]
+    side = "L" if to_side[0] > 0 else "R"
+    sign = 1.0 if side == "L" else -1.0
+    outer = "3.7" if side == "L" else "3.12"
+    es = np.linalg.norm(pts["3.5"] - pts["3.6"])
+    env = feature_envelope(pts, side, np.array([pts[outer][1], pts["11.1"][1] + 0.01, pts["2.1"][1] - 0.01]))
+    assert env[0] >= pts[outer][0] * sign + FEATURE_MARGIN_ES * es - 1e-9
+    assert np.isneginf(env[1]) and np.isneginf(env[2])  # above the brows, below the lips: nothing to keep
+
+    def line(**kw):
+        p = view_line(pts, v, t, side, to_front, to_side, normals=n, registration=(1e6, 1.0), **kw)[0][3:]
+        return p, feature_envelope(pts, side, p[:, 1])
+
+    p, env = line()
+    inside = np.isfinite(env)
+    assert inside.sum() >= 4
+    # The split's last front vertex lies within one vertex spacing (~4 mm) of the envelope.
+    assert np.all(p[inside, 0] * sign >= env[inside] - 0.004), (p[inside, 0] * sign - env[inside])
+    monkeypatch.setattr(regions, "feature_envelope", lambda pts, side, h, margin=None: np.full(len(h), -np.inf))
+    q, _ = line()
+    assert np.min(q[inside, 0] * sign - env[inside]) < -0.02  # unguarded, it cuts deep into the face
