@@ -224,6 +224,17 @@ class Camera:
             return np.stack([cx + c[:, 0] * s, cy - c[:, 1] * s], axis=1)
         return np.stack([cx + c[:, 0] * self.scale_px, cy - c[:, 1] * self.scale_px], axis=1)
 
+    def unproject(self, pixels, depth) -> np.ndarray:
+        """(K, 3) float64 world points (metres) at (K, 2) pixel positions and (K,) depths
+        along the viewing axis: the inverse of :meth:`project` and :meth:`depth` (a depth
+        render's pixels give the surface they show)."""
+        px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        d = np.asarray(depth, dtype=np.float64).reshape(-1)
+        cx, cy = self.principal
+        s = d / self.focal_px if self.perspective else np.full_like(d, 1.0 / self.scale_px)
+        c = np.stack([(px[:, 0] - cx) * s, -(px[:, 1] - cy) * s, -d], axis=1)
+        return c @ self.rotation + self.centre
+
     def gl_matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """(4, 4) float64 view and projection matrices (row-major) matching :meth:`project`.
 

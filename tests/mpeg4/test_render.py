@@ -153,10 +153,23 @@ def test_depth_matches_camera_depth_on_a_tilted_plane(focal):
     inside = inset > 1.0  # pixel centres more than a pixel inside the projected quad
     assert inside.sum() > 5000
     assert np.abs(depth[inside] - truth[inside]).max() < 1e-4
+    # Each pixel's depth gives back a point of the plane.
+    ys, xs = np.nonzero(inside)
+    on = cam.unproject(np.c_[xs, ys], depth[ys, xs])
+    assert np.abs((on - p0) @ normal).max() < 1e-4
     # Nothing drawn beyond the antialiased rim: depth inf, background white.
     outer = inset < -1.0
     assert outer.sum() > 5000
     assert np.isinf(depth[outer]).all() and (image[outer] == 255).all()
+
+
+@pytest.mark.parametrize("focal", [None, 500.0])
+def test_unproject_inverts_project_and_depth(focal):
+    rng = np.random.default_rng(4)
+    points = rng.normal(0, 0.05, (50, 3))
+    cam = Camera.fit(points, 320, 240, yaw_deg=-60, pitch_deg=-15, focal_px=focal)
+    back = cam.unproject(cam.project(points), cam.depth(points))
+    np.testing.assert_allclose(back, points, atol=1e-12)
 
 
 def test_nearer_surface_wins_whatever_the_drawing_order():
