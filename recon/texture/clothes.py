@@ -1,12 +1,16 @@
-"""The neck below the collar: found in a photo and filled from the skin above it.
+"""The neck below the collar and under hanging hair: found in a photo and filled from the
+skin around it.
 
-The head's mesh runs down the neck to the top of the chest; a photo shows a shirt there.
-Textured as it is, the collar and the shirt are painted onto the neck. Here the skin's
-colours are learnt from the face (a Gaussian in CIELAB over the pixels of skin vertices the
-photo sees), and below the chin the pixels that are not skin by that model and that rise
-from the bottom of the head's region — the shirt comes up from below — are taken for
-clothes. They are painted as the skin around them (:func:`fill_from_skin`): the skin's
-colour carried smoothly in from all round (a harmonic membrane), with the skin's own grain.
+The head's mesh runs down the neck to the top of the chest; a photo shows a shirt there,
+and long hair hanging over the nape. Textured as they are, the collar, the shirt and the
+strands are painted onto the neck. Here the skin's colours are learnt from the face (a
+Gaussian in CIELAB over the pixels of skin vertices the photo sees, grown from the cheeks:
+:func:`face_skin_model`). Below the chin the pixels that are not skin by that model and
+that rise from the bottom of the head's region — the shirt comes up from below — are taken
+for clothes; behind and below the jaw's angles (:func:`nape_zone`) whatever is not skin is
+taken for hair. Both are painted as the skin around them (:func:`fill_from_skin`): the
+skin's colour carried smoothly in from all round (a harmonic membrane), with the skin's own
+grain.
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ from mpeg4.render import Camera, vertex_normals
 
 from .delight import fit_mask
 
-__all__ = ["SKIN_CHI2", "skin_model", "face_skin_model", "skin_pixels", "clothes_mask", "fill_from_skin",
+__all__ = ["SKIN_CHI2", "skin_model", "face_skin_model", "cheek_vertices", "skin_pixels", "clothes_mask", "nape_zone", "fill_from_skin",
            "remove_clothes"]
 
 #: Squared Mahalanobis distance (3 degrees of freedom) beyond which a colour is not skin:
@@ -125,6 +129,27 @@ def clothes_mask(photo: np.ndarray, head_mask: np.ndarray, model: tuple[np.ndarr
     # Each column from its clothes' top down: the V of an open collar stays skin.
     first = np.where(rising.any(axis=0), np.argmax(rising, axis=0), h)
     return below & (np.arange(h)[:, None] >= first[None, :])
+
+
+def nape_zone(head: Head, camera: Camera, depth: np.ndarray) -> np.ndarray:
+    """(H, W) bool: where a photo shows the neck behind and below the jaw's angles.
+
+    The skin there (below the mean height of the jaw's angles 2.13/2.14 and behind their
+    mean depth) is neck and nape, not scalp: long hair hanging over it belongs to no part
+    of the head's mesh, and a beard does not reach it. Each pixel is judged by the surface
+    point it shows (``depth``: the head's depth render through ``camera``, ``inf`` where
+    it does not show), so the zone's edge is as smooth as the photo's pixels. Empty when
+    the head lacks 2.13 or 2.14."""
+    depth = np.asarray(depth, np.float64)
+    h, w = depth.shape
+    if not all(i in head.feature_points for i in ("2.13", "2.14")):
+        return np.zeros((h, w), bool)
+    jaw = 0.5 * (head.fp_position("2.13") + head.fp_position("2.14"))
+    ys, xs = np.nonzero(np.isfinite(depth))
+    p = camera.unproject(np.c_[xs, ys], depth[ys, xs])
+    out = np.zeros((h, w), bool)
+    out[ys, xs] = (p[:, 1] < jaw[1]) & (p[:, 2] < jaw[2])
+    return out
 
 
 def fill_from_skin(photo: np.ndarray, mask: np.ndarray, skin: np.ndarray, grain_px: float = 0.7,
@@ -239,8 +264,16 @@ def face_skin_model(head: Head, photo: np.ndarray, camera: Camera, seen: np.ndar
     """:func:`skin_model` of a photo from the face of the head fitted to it: the skin
     vertices (``skin``, :func:`recon.texture.delight.fit_mask` when None) the camera sees
     (``seen``, (N,) bool), above the chin (2.1) and facing the camera within 45° — not the
-    neck (it may be under a collar), nor the rims and sideburns seen edge-on. None as
-    :func:`skin_model`."""
+    neck (it may be under a collar), nor the rims and sideburns seen edge-on.
+
+    Where the hair falls over that face (a fringe, the temples and the hair before the ear
+    in a profile), the head's regions do not know it, and fair hair is near enough to skin
+    to widen one Gaussian over both. So the model starts from the cheeks
+    (:func:`cheek_vertices` the camera sees, below the eyes, above the mouth's corners, beside
+    the nose),
+    skin on almost everyone, and takes the rest of the face where its colour is skin by
+    that start, its lightness spread doubled (the forehead and the chin lie in other
+    light). None as :func:`skin_model`."""
     v = head.skin.vertices
     normals = vertex_normals(v, head.skin.triangles) if normals is None else normals
     skin = fit_mask(head) > 0 if skin is None else skin
@@ -248,13 +281,43 @@ def face_skin_model(head: Head, photo: np.ndarray, camera: Camera, seen: np.ndar
     face = skin & seen & facing
     if "2.1" in head.feature_points:
         face &= v[:, 1] > head.fp_position("2.1")[1]
-    return skin_model(photo, camera.project(v[face]))
+    px = camera.project(v[face])
+    # The cheeks however squarely they face the camera: a profile sees them at 45–70°.
+    core = skin_model(photo, camera.project(v[skin & seen & cheek_vertices(head)]))
+    if core is not None:
+        h, w = photo.shape[:2]
+        q = np.rint(px).astype(np.int64)
+        q = q[(q[:, 0] >= 0) & (q[:, 0] < w) & (q[:, 1] >= 0) & (q[:, 1] < h)]
+        like = skin_pixels(photo[q[:, 1], q[:, 0]][None], core, lightness=2.0)[0]
+        if like.sum() >= 30:
+            px = q[like]
+    return skin_model(photo, px)
+
+
+def cheek_vertices(head: Head) -> np.ndarray:
+    """(N,) bool: the skin vertices of the cheeks, between the lower lids' and the mouth's
+    corners' heights, from the nose's wings out to the eyes' outer corners (their distance
+    from the midline), in front of the outer corners. Hair and beards rarely reach them.
+    All False when the head lacks one of those feature points."""
+    v = head.skin.vertices
+    need = ("3.3", "3.4", "8.3", "8.4", "9.1", "9.2", "3.7", "3.12")
+    if not all(i in head.feature_points for i in need):
+        return np.zeros(len(v), bool)
+    p = {i: head.fp_position(i) for i in need}
+    top = 0.5 * (p["3.3"][1] + p["3.4"][1])
+    bottom = 0.5 * (p["8.3"][1] + p["8.4"][1])
+    inner = 0.5 * (abs(p["9.1"][0]) + abs(p["9.2"][0]))
+    outer = 0.5 * (abs(p["3.7"][0]) + abs(p["3.12"][0]))
+    front = min(p["3.7"][2], p["3.12"][2])
+    x = np.abs(v[:, 0])
+    return (v[:, 1] < top) & (v[:, 1] > bottom) & (x > inner) & (x < outer) & (v[:, 2] > front)
 
 
 def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera: Camera,
-                   seen: np.ndarray, normals: np.ndarray | None = None,
-                   skin: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    """A photo of ``head`` with the clothes over its neck filled from the skin above them.
+                   seen: np.ndarray, normals: np.ndarray | None = None, skin: np.ndarray | None = None,
+                   depth: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """A photo of ``head`` with the clothes over its neck, and the hair hanging over its
+    nape (:func:`nape_zone`), filled from the skin around them.
 
     Parameters
     ----------
@@ -273,6 +336,9 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
     skin : (N,) bool, optional
         The skin vertices whose colour is skin (:func:`recon.texture.delight.fit_mask` when
         None).
+    depth : (H, W) float, optional
+        The head's depth render through ``camera`` (:func:`mpeg4.unlit.render_depth`;
+        rendered when None): where the nape is (:func:`nape_zone`).
 
     Returns
     -------
@@ -288,15 +354,35 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
     if model is None:
         return photo, 0.0
     chin = camera.project(np.asarray(pts["2.1"])[None])[0]
-    # Only the head's region below the chin is looked at.
-    top = int(np.clip(np.ceil(chin[1]), 0, photo.shape[0]))
+    # Only the head's region below the chin, and the nape, is looked at.
+    chin_row = int(np.clip(np.ceil(chin[1]), 0, photo.shape[0]))
+    if depth is None:
+        from mpeg4.render import RenderMesh
+        from mpeg4.unlit import render_depth
+
+        depth = render_depth([RenderMesh(p.vertices, p.triangles, normals=np.zeros_like(p.vertices))
+                              for p in head.parts.values()], camera)
+    nape_full = nape_zone(head, camera, depth) & head_mask
+    top = min(chin_row, int(np.argmax(nape_full.any(axis=1)))) if nape_full.any() else chin_row
     cols = np.flatnonzero(head_mask[top:].any(axis=0))
     rows = np.flatnonzero(head_mask[top:].any(axis=1))
     if not len(cols):
         return photo, 0.0
     box = np.s_[top:top + rows[-1] + 1, cols[0]:cols[-1] + 1]
     crop, crop_head = photo[box], head_mask[box]
-    mask = clothes_mask(crop, crop_head, model, 0.0)
+    mask = clothes_mask(crop, crop_head, model, chin_row - top)
+    # Hair hanging over the neck behind the jaw: what is not skin there by the model's own
+    # spread (fair hair passes the clothes' looser test; skin in the jaw's shadow that
+    # fails this one is painted as the skin around it, which carries the shading in).
+    nape = nape_full[box]
+    if nape.any():
+        hair = (nape & ~skin_pixels(crop, model)).astype(np.uint8)
+        # Strands are a pixel or two wide: no opening (it would take them all away), only
+        # specks smaller than a 5 x 5 square left out, and each strand's fringe taken too.
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(hair, connectivity=8)
+        big = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= 25)
+        hair = np.isin(labels, big[big > 0]).astype(np.uint8)
+        mask |= (cv2.dilate(hair, np.ones((3, 3), np.uint8)) > 0) & nape
     if not mask.any():
         return photo, 0.0
     # Skin by the model's own spread: the looser test the clothes are found by would let

@@ -324,7 +324,7 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
     # a shirt does not weigh on the fit (the fill carries the neck's own shading down).
     for key in list(photos):
         photos[key], covered = remove_clothes(head, photos[key], head_masks[key], cams[key].camera, seen[key],
-                                              normals=skin_normals, skin=skin_to_fit > 0)
+                                              normals=skin_normals, skin=skin_to_fit > 0, depth=depth[key])
         if covered > 0.01:
             say(f"the {key} photo shows clothes over {100 * covered:.0f} % of the head: filled from the neck's "
                 f"skin around them")

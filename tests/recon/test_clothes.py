@@ -4,7 +4,7 @@ carried down; and on a dressed synthetic person, the neck's texture against its 
 import numpy as np
 import pytest
 
-from recon.texture.clothes import clothes_mask, fill_from_skin, skin_model, skin_pixels
+from recon.texture.clothes import SKIN_CHI2, clothes_mask, fill_from_skin, skin_model, skin_pixels
 
 SKIN = np.array([196.0, 150.0, 128.0])
 SHIRT = np.array([40.0, 60.0, 130.0])
@@ -148,3 +148,87 @@ def test_a_shirt_is_not_painted_on_the_neck(ict_npz, monkeypatch):
     neck0, face0 = _neck_and_face_error(painted, sp, data)
     assert neck < 0.25 * neck0, (neck, neck0)
     assert face < 0.5 * face0, (face, face0)
+
+
+@pytest.mark.slow
+def test_hair_hanging_over_the_nape_is_not_painted_on_the_neck(ict_npz, monkeypatch):
+    """Strands of dark hair drawn down the neck behind the jaw in the side photo (as long
+    hair falls there) are painted as the skin around them (recon.texture.clothes.nape_zone);
+    without that step they are painted on the neck (0.14 of the nape's vertices take
+    their colour; filled, none)."""
+    import cv2
+    from scipy.ndimage import map_coordinates
+
+    import recon.texture.clothes as clothes
+    from recon.build import PhotoPair, build_head
+    from recon.evaluate.synthetic import load_ict, synthetic_pair
+
+    sp = synthetic_pair(1000, data=load_ict(ict_npz))
+    pts = sp.fdp.views["side"].points
+    lobe = np.mean([pts[i] for i in ("10.5", "10.6") if i in pts], axis=0)
+    jaw = np.mean([pts[i] for i in ("2.13", "2.14") if i in pts], axis=0)
+    back = np.sign(lobe[0] - pts["9.3"][0])  # away from the nose
+    reach = abs(lobe[0] - jaw[0]) + 10  # pixels behind the jaw's angle
+    side = sp.side.copy()
+    rng = np.random.default_rng(0)
+    hair = (70, 45, 30)
+    for _ in range(30):  # wavy strands from under the ear lobe down the neck
+        x0 = lobe[0] + back * rng.uniform(0.3, 1.6) * reach
+        ys = np.linspace(lobe[1] + 5, lobe[1] + rng.uniform(3, 5) * reach, 40)
+        xs = x0 + back * np.linspace(0, 0.5, 40) * reach + 4 * np.sin(ys / 9 + rng.uniform(0, 6))
+        cv2.polylines(side, [np.rint(np.c_[xs, ys]).astype(np.int32)], False, hair, 3, cv2.LINE_AA)
+    pair = PhotoPair(sp.front, side, sp.fdp, {})
+
+    def hair_on_the_nape():
+        r = build_head(pair, ipd_mm=sp.person.ipd_mm, focal_px=sp.focal_px, texture_size=1024, keep_lighting=True)
+        tex = r.head.parts["skin"].texture.astype(np.float32)
+        s, v = r.skin, r.head.parts["skin"].vertices
+        size = tex.shape[0]
+        jaw3 = 0.5 * (r.head.fp_position("2.13") + r.head.fp_position("2.14"))
+        sv = v[s.source]
+        nape = (sv[:, 1] < jaw3[1]) & (sv[:, 2] < jaw3[2]) & (s.vertex_region == 1)  # seen by the side photo
+        x = s.uv[nape, 0] * size - 0.5
+        y = (1 - s.uv[nape, 1]) * size - 0.5
+        got = np.stack([map_coordinates(tex[..., c], [y, x], order=1) for c in range(3)], axis=1)
+        assert nape.sum() > 200
+        return float(np.mean(np.linalg.norm(got - hair, axis=1) < 40))
+
+    filled = hair_on_the_nape()
+    monkeypatch.setattr(clothes, "nape_zone", lambda head, camera, depth: np.zeros(depth.shape, bool))
+    painted = hair_on_the_nape()
+    assert painted > 0.08, painted  # 0.14 of the nape the side photo gives
+    assert filled < 0.2 * painted, (filled, painted)
+
+
+def test_the_face_skin_model_grows_from_the_cheeks_past_fair_hair():
+    """Fair hair over a third of the face (a fringe, the temples) is near enough to skin
+    to widen one Gaussian over both; grown from the cheeks, the model keeps the skin and
+    leaves the hair out."""
+    from mpeg4.generic_head import load_generic_head
+    from mpeg4.render import Camera, RenderMesh
+    from mpeg4.unlit import render_depth
+    from recon.texture.clothes import _lab, cheek_vertices, face_skin_model
+    from recon.texture.regions import _visible
+
+    head = load_generic_head()
+    v = head.skin.vertices
+    cam = Camera.fit(v, 400, 500, focal_px=1500.0)
+    depth = render_depth([RenderMesh(p.vertices, p.triangles) for p in head.parts.values()], cam)
+    seen = _visible(v, cam, depth)
+    rng = np.random.default_rng(2)
+    h, w = depth.shape
+    photo = np.full((h, w, 3), 230.0)
+    photo[np.isfinite(depth)] = SKIN
+    hair_rgb = np.array([170.0, 125.0, 85.0])  # dark blond: 9 L darker and yellower than the skin
+    brow = cam.project(head.fp_position("4.1")[None])[0, 1]
+    hair = np.isfinite(depth) & (np.arange(h)[:, None] < brow - 4)
+    photo[hair] = hair_rgb
+    photo = np.clip(photo + rng.normal(0, 6, photo.shape), 0, 255).astype(np.uint8)
+    assert cheek_vertices(head)[seen].sum() > 100
+    mean, inv = face_skin_model(head, photo, cam, seen)
+    d_hair = _lab(hair_rgb.astype(np.uint8)[None])[0] - mean
+    d_skin = _lab(SKIN.astype(np.uint8)[None])[0] - mean
+    assert d_hair @ inv @ d_hair > 2 * SKIN_CHI2  # the hair is far outside
+    assert d_skin @ inv @ d_skin < 1.0  # the skin at its centre
+    assert skin_pixels(photo, (mean, inv))[hair].mean() < 0.01
+    assert skin_pixels(photo, (mean, inv))[np.isfinite(depth) & ~hair].mean() > 0.97
