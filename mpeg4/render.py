@@ -232,8 +232,10 @@ class Camera:
         d = np.asarray(depth, dtype=np.float64).reshape(-1)
         cx, cy = self.principal
         s = d / self.focal_px if self.perspective else np.full_like(d, 1.0 / self.scale_px)
-        c = np.stack([(px[:, 0] - cx) * s, -(px[:, 1] - cy) * s, -d], axis=1)
-        return c @ self.rotation + self.centre
+        r = self.rotation  # rows: the camera's axes in the world; summed by hand, as a (K, 3)
+        # by (3, 3) product through matmul is several times slower for large K
+        return (((px[:, 0] - cx) * s)[:, None] * r[0] - ((px[:, 1] - cy) * s)[:, None] * r[1]
+                - d[:, None] * r[2] + self.centre)
 
     def gl_matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """(4, 4) float64 view and projection matrices (row-major) matching :meth:`project`.

@@ -131,21 +131,22 @@ def clothes_mask(photo: np.ndarray, head_mask: np.ndarray, model: tuple[np.ndarr
     return below & (np.arange(h)[:, None] >= first[None, :])
 
 
-def nape_zone(head: Head, camera: Camera, depth: np.ndarray) -> np.ndarray:
+def nape_zone(head: Head, camera: Camera, depth: np.ndarray, within: np.ndarray | None = None) -> np.ndarray:
     """(H, W) bool: where a photo shows the neck behind and below the jaw's angles.
 
     The skin there (below the mean height of the jaw's angles 2.13/2.14 and behind their
     mean depth) is neck and nape, not scalp: long hair hanging over it belongs to no part
     of the head's mesh, and a beard does not reach it. Each pixel is judged by the surface
     point it shows (``depth``: the head's depth render through ``camera``, ``inf`` where
-    it does not show), so the zone's edge is as smooth as the photo's pixels. Empty when
+    it does not show), so the zone's edge is as smooth as the photo's pixels; only the
+    pixels ``within`` ((H, W) bool, optional: the head's region) are looked at. Empty when
     the head lacks 2.13 or 2.14."""
     depth = np.asarray(depth, np.float64)
     h, w = depth.shape
     if not all(i in head.feature_points for i in ("2.13", "2.14")):
         return np.zeros((h, w), bool)
     jaw = 0.5 * (head.fp_position("2.13") + head.fp_position("2.14"))
-    ys, xs = np.nonzero(np.isfinite(depth))
+    ys, xs = np.nonzero(np.isfinite(depth) if within is None else np.isfinite(depth) & within)
     p = camera.unproject(np.c_[xs, ys], depth[ys, xs])
     out = np.zeros((h, w), bool)
     out[ys, xs] = (p[:, 1] < jaw[1]) & (p[:, 2] < jaw[2])
@@ -362,7 +363,7 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
 
         depth = render_depth([RenderMesh(p.vertices, p.triangles, normals=np.zeros_like(p.vertices))
                               for p in head.parts.values()], camera)
-    nape_full = nape_zone(head, camera, depth) & head_mask
+    nape_full = nape_zone(head, camera, depth, within=head_mask)
     top = min(chin_row, int(np.argmax(nape_full.any(axis=1)))) if nape_full.any() else chin_row
     cols = np.flatnonzero(head_mask[top:].any(axis=0))
     rows = np.flatnonzero(head_mask[top:].any(axis=1))
@@ -375,11 +376,12 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
     # spread (fair hair passes the clothes' looser test; skin in the jaw's shadow that
     # fails this one is painted as the skin around it, which carries the shading in).
     nape = nape_full[box]
+    strict = skin_pixels(crop, model)
     if nape.any():
-        hair = (nape & ~skin_pixels(crop, model)).astype(np.uint8)
+        hair = (nape & ~strict).astype(np.uint8)
         # Strands are a pixel or two wide: no opening (it would take them all away), only
         # specks smaller than a 5 x 5 square left out, and each strand's fringe taken too.
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(hair, connectivity=8)
+        _, labels, stats, _ = cv2.connectedComponentsWithStats(hair, connectivity=8)
         big = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= 25)
         hair = np.isin(labels, big[big > 0]).astype(np.uint8)
         mask |= (cv2.dilate(hair, np.ones((3, 3), np.uint8)) > 0) & nape
@@ -387,7 +389,7 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
         return photo, 0.0
     # Skin by the model's own spread: the looser test the clothes are found by would let
     # brown hair lying on the neck in, and pull the fill towards it.
-    source = crop_head & skin_pixels(crop, model) & ~mask
+    source = crop_head & strict & ~mask
     out = photo.copy()
     out[box] = fill_from_skin(crop, mask, source)
     return out, float(mask.sum() / max(head_mask.sum(), 1))
