@@ -36,6 +36,7 @@ from mpeg4.head import Head, SparseDisplacement
 from .bound import bound_tables
 from .lip_contours import MOUTH_LINE_FPS, lip_side, mouth_line, share_lips, smooth_partition
 from .puff import PUFF_FAPS, puff_field
+from .push import PUSH_FAPS, along_axis
 from .separate import separate_tables
 from .unfold import unfold_tables
 
@@ -325,6 +326,8 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
                     fit_err = 0.0  # along the axis it is exact by construction
             else:
                 disp, fit_err, leak, w = _solve(head, names, a, ids, k, bad, goal, parts)
+                if n in PUSH_FAPS:  # a lip pushed forward moves in depth, not sideways (fmc.push)
+                    disp = along_axis(disp, axis)
             if fit_err > tol or leak > leak_tol:
                 disp = _falloff(head, fp_id, goal)
                 motion = _fp_motion(head, disp, ids)
