@@ -23,7 +23,8 @@ from mpeg4.render import Camera, vertex_normals
 
 from .delight import fit_mask
 
-__all__ = ["SKIN_CHI2", "skin_model", "face_skin_model", "cheek_vertices", "skin_pixels", "clothes_mask", "nape_zone", "fill_from_skin",
+__all__ = ["SKIN_CHI2", "skin_model", "face_skin_model", "cheek_vertices", "skin_pixels", "clothes_mask", "nape_zone", "collar_bands",
+           "fill_from_skin",
            "remove_clothes"]
 
 #: Squared Mahalanobis distance (3 degrees of freedom) beyond which a colour is not skin:
@@ -151,6 +152,34 @@ def nape_zone(head: Head, camera: Camera, depth: np.ndarray, within: np.ndarray 
     out = np.zeros((h, w), bool)
     out[ys, xs] = (p[:, 1] < jaw[1]) & (p[:, 2] < jaw[2])
     return out
+
+
+def collar_bands(other: np.ndarray, nape: np.ndarray, chin_row: float, min_px: int = 25) -> np.ndarray:
+    """(H, W) bool: what is not skin below the chin and reaches into the nape, low on the neck.
+
+    A collar of another colour than the shirt below it (a white undershirt's rim above a
+    sweater of the skin's colour) does not rise from the bottom of the head's region as
+    :func:`clothes_mask` wants, and the nape zone holds only its ends; such a band crosses
+    the neck from the nape on one side. Taken: each not-skin region (``other``, 8-connected,
+    of at least ``min_px`` pixels) below ``chin_row`` that reaches into ``nape`` and whose
+    middle lies in the lower half of the neck, between the chin and the head region's
+    bottom (a beard, under the jaw, does not), with a pixel round it.
+    """
+    h, w = other.shape
+    top = int(np.clip(np.ceil(chin_row), 0, h))
+    below = np.zeros((h, w), np.uint8)
+    below[top:] = other[top:]
+    n, labels, stats, centre = cv2.connectedComponentsWithStats(below, connectivity=8)
+    rows = np.flatnonzero(other.any(axis=1) | nape.any(axis=1))
+    if n <= 1 or not len(rows):
+        return np.zeros((h, w), bool)
+    half = 0.5 * (top + rows[-1])
+    touching = np.zeros(n, bool)
+    touching[np.unique(labels[nape & (labels > 0)])] = True
+    keep = touching & (stats[:, cv2.CC_STAT_AREA] >= min_px) & (centre[:, 1] >= half)
+    keep[0] = False
+    # With a pixel round each, the band's blurred rim.
+    return cv2.dilate(keep[labels].astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
 
 
 def fill_from_skin(photo: np.ndarray, mask: np.ndarray, skin: np.ndarray, grain_px: float = 0.7,
@@ -385,6 +414,7 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
         big = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= 25)
         hair = np.isin(labels, big[big > 0]).astype(np.uint8)
         mask |= (cv2.dilate(hair, np.ones((3, 3), np.uint8)) > 0) & nape
+        mask |= collar_bands(~strict & crop_head, nape, chin_row - top) & crop_head
     if not mask.any():
         return photo, 0.0
     # Skin by the model's own spread: the looser test the clothes are found by would let

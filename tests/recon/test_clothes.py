@@ -232,3 +232,25 @@ def test_the_face_skin_model_grows_from_the_cheeks_past_fair_hair():
     assert d_skin @ inv @ d_skin < 1.0  # the skin at its centre
     assert skin_pixels(photo, (mean, inv))[hair].mean() < 0.01
     assert skin_pixels(photo, (mean, inv))[np.isfinite(depth) & ~hair].mean() > 0.97
+
+
+def test_a_collar_band_low_on_the_neck_is_found_and_a_beard_under_the_chin_is_not():
+    """A white undershirt's rim across the base of the neck, above a sweater of the skin's
+    own colour (nothing rises from the bottom as clothes), reaching the nape zone at both
+    ends: found whole. A dark band of beard just under the chin, reaching it too: left."""
+    from recon.texture.clothes import collar_bands
+
+    h, w = 200, 160
+    ys, xs = np.mgrid[:h, :w]
+    other = np.zeros((h, w), bool)
+    rim = (np.abs(ys - (150 - 0.004 * (xs - 80) ** 2)) < 4) & (xs > 20) & (xs < 140)  # an arc, 7 px wide
+    beard = (ys > 42) & (ys < 60) & (xs > 25) & (xs < 135)
+    other |= rim | beard
+    nape = (xs < 35) | (xs > 125)  # the neck's sides behind the jaw
+    nape[:40] = False
+    found = collar_bands(other, nape, chin_row=40.0)
+    assert found[rim].all()
+    assert not found[beard].any()
+    assert found.sum() < 1.6 * rim.sum()  # the band and its rim, nothing more
+    # A band that reaches no nape (the neck's front only) is left for clothes_mask to judge.
+    assert not collar_bands(other & (np.abs(xs - 80) < 30), nape, chin_row=40.0).any()
