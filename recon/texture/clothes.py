@@ -147,7 +147,16 @@ def nape_zone(head: Head, camera: Camera, depth: np.ndarray, within: np.ndarray 
     if not all(i in head.feature_points for i in ("2.13", "2.14")):
         return np.zeros((h, w), bool)
     jaw = 0.5 * (head.fp_position("2.13") + head.fp_position("2.14"))
-    ys, xs = np.nonzero(np.isfinite(depth) if within is None else np.isfinite(depth) & within)
+    # Rows above every skin vertex near the zone (within a centimetre, far more than a
+    # triangle's size) cannot show it: only the rows below are unprojected.
+    v = head.skin.vertices
+    near = (v[:, 1] < jaw[1] + 0.01) & (v[:, 2] < jaw[2] + 0.01)
+    if not near.any():
+        return np.zeros((h, w), bool)
+    first = int(np.clip(np.floor(camera.project(v[near])[:, 1].min()) - 2, 0, h))
+    look = np.isfinite(depth[first:]) if within is None else np.isfinite(depth[first:]) & within[first:]
+    ys, xs = np.nonzero(look)
+    ys += first
     p = camera.unproject(np.c_[xs, ys], depth[ys, xs])
     out = np.zeros((h, w), bool)
     out[ys, xs] = (p[:, 1] < jaw[1]) & (p[:, 2] < jaw[2])
@@ -420,6 +429,13 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
     # Skin by the model's own spread: the looser test the clothes are found by would let
     # brown hair lying on the neck in, and pull the fill towards it.
     source = crop_head & strict & ~mask
+    # The fill's work kept to what it paints and the skin round it (a tenth of the box
+    # each way): a few hairs at the nape need not solve for the whole neck.
+    ys, xs = np.nonzero(mask)
+    m = max(8, int(0.1 * max(mask.shape)))
+    near = np.s_[max(ys.min() - m, 0):ys.max() + m + 1, max(xs.min() - m, 0):xs.max() + m + 1]
     out = photo.copy()
-    out[box] = fill_from_skin(crop, mask, source)
+    filled = crop.copy()
+    filled[near] = fill_from_skin(crop[near], mask[near], source[near])
+    out[box] = filled
     return out, float(mask.sum() / max(head_mask.sum(), 1))
