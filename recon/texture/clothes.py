@@ -23,9 +23,8 @@ from mpeg4.render import Camera, vertex_normals
 
 from .delight import fit_mask
 
-__all__ = ["SKIN_CHI2", "skin_model", "face_skin_model", "cheek_vertices", "skin_pixels", "clothes_mask", "nape_zone", "collar_bands",
-           "fill_from_skin",
-           "remove_clothes"]
+__all__ = ["SKIN_CHI2", "skin_model", "face_skin_model", "cheek_vertices", "skin_pixels", "clothes_mask",
+           "nape_zone", "collar_bands", "fill_from_skin", "remove_clothes"]
 
 #: Squared Mahalanobis distance (3 degrees of freedom) beyond which a colour is not skin:
 #: the 99.9th percentile of the chi-squared law, so that the skin itself is almost never
@@ -307,9 +306,8 @@ def face_skin_model(head: Head, photo: np.ndarray, camera: Camera, seen: np.ndar
 
     Where the hair falls over that face (a fringe, the temples and the hair before the ear
     in a profile), the head's regions do not know it, and fair hair is near enough to skin
-    to widen one Gaussian over both. So the model starts from the cheeks
-    (:func:`cheek_vertices` the camera sees, below the eyes, above the mouth's corners, beside
-    the nose),
+    to widen one Gaussian over both. So the model starts from the cheeks the camera sees
+    (:func:`cheek_vertices`: below the eyes, above the mouth's corners, beside the nose),
     skin on almost everyone, and takes the rest of the face where its colour is skin by
     that start, its lightness spread doubled (the forehead and the chin lie in other
     light). None as :func:`skin_model`."""
