@@ -394,11 +394,9 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
     # Only the head's region below the chin, and the nape, is looked at.
     chin_row = int(np.clip(np.ceil(chin[1]), 0, photo.shape[0]))
     if depth is None:
-        from mpeg4.render import RenderMesh
-        from mpeg4.unlit import render_depth
+        from .regions import _depth, _head_meshes
 
-        depth = render_depth([RenderMesh(p.vertices, p.triangles, normals=np.zeros_like(p.vertices))
-                              for p in head.parts.values()], camera)
+        depth = _depth(_head_meshes(head), camera)
     nape_full = nape_zone(head, camera, depth, within=head_mask)
     top = min(chin_row, int(np.argmax(nape_full.any(axis=1)))) if nape_full.any() else chin_row
     cols = np.flatnonzero(head_mask[top:].any(axis=0))
