@@ -2,7 +2,9 @@
 
 ``../shared/data/foreign_heads/makehuman/base.obj`` is a whole body in decimetres (+y up,
 +z forward, +x the figure's left); its first 13 380 vertices are the body, the rest helper
-geometry. The head is the body's vertices above the shoulders (y > 6.3 dm), in metres. Its
+geometry. The head is the body's vertices above the shoulders (y > 5.85 dm: the neck's
+half-width is 0.5–0.6 dm up to 5.8 dm and the shoulders spread below; the chin's lowest
+point is at 6.15 dm), in metres. Its
 ``.target`` files (FACSHuman action units and emotions, HBC visemes: ``vertex dx dy dz``
 lines, indices into ``base.obj``) become morph targets of that head.
 """
@@ -24,7 +26,7 @@ __all__ = ["MAKEHUMAN_DIR", "makehuman_head", "read_target"]
 MAKEHUMAN_DIR = Path(__file__).resolve().parents[3] / "shared" / "data" / "foreign_heads" / "makehuman"
 
 _BODY = 13380  # vertices of the body group; the rest are helpers
-_NECK_DM = 6.3  # the head is the body above this height, decimetres
+_NECK_DM = 5.85  # the head is the body above this height, decimetres
 
 
 def read_target(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
