@@ -2,7 +2,8 @@
 
 :func:`fitted_points` fits the generic head's skin to the mesh, following the points found
 on it, and takes the points a grey render can only guess from the fit;
-:func:`hidden_points` places those no view shows and no fit reached (teeth, tongue).
+:func:`lips_on_their_own_side` keeps the inner lip points on their own lip where the lips
+touch; :func:`hidden_points` places those no view shows and no fit reached (teeth, tongue).
 """
 
 from __future__ import annotations
@@ -18,7 +19,17 @@ from recon.shape.deform import fit_similarity
 
 from .lift import Hit, _Surface
 
-__all__ = ["fitted_points", "hidden_points"]
+__all__ = ["fitted_points", "lips_on_their_own_side", "hidden_points"]
+
+#: The inner lip points by lip (+1 upper, -1 lower), and the outer points each lip is
+#: known by: the vermilion's top and bottom and the philtrum's and chin's sides of it.
+INNER_LIP_SIDE = {"2.2": 1.0, "2.6": 1.0, "2.7": 1.0, "2.3": -1.0, "2.8": -1.0, "2.9": -1.0}
+OUTER_LIP_POINTS = {1.0: ("8.1", "8.5", "8.6"), -1.0: ("8.2", "8.7", "8.8")}
+
+# How far along the mesh (metres) a lip's outer points claim its vertices: past the
+# vermilion's depth (about 15 mm at the middle, round to the inner surface), short of the
+# other lip by way of the corners.
+_LIP_CLAIM = 0.03
 
 
 def fitted_points(head: Head, hits: dict[str, Hit], guessed=(), give: float = 0.0,
@@ -141,3 +152,64 @@ def hidden_points(head: Head, hits: dict[str, Hit], generic: Head | None = None,
             tri, snapped = surface.closest(to_head(g[i])[None], ["skin"])
             out[i] = surface.hit(tri[0], snapped[0], 0.0, "generic")
     return {i: out[i] for i in FP_IDS if i in out}
+
+
+def lip_sides(head: Head, hits: Mapping[str, Hit], reach: float = _LIP_CLAIM) -> np.ndarray:
+    """(N,) +1 / −1 for skin vertices nearer along the mesh to the upper / lower lip's outer
+    points (:data:`OUTER_LIP_POINTS`), 0 beyond ``reach`` metres of both or when a lip has
+    none on the skin.
+
+    Along the mesh the two lips meet only at the corners (and deep in the mouth), so
+    vertices where the lips touch, a fraction of a millimetre apart, are told apart.
+    """
+    from scipy.sparse.csgraph import dijkstra
+
+    from mpeg4.surface import edge_graph
+
+    skin = head.parts["skin"]
+    seeds, sign = [], []
+    for side, ids in OUTER_LIP_POINTS.items():
+        own = [int(v) for i in ids if i in hits and hits[i].part == "skin" and hits[i].triangle >= 0
+               for v in skin.triangles[hits[i].triangle]]
+        if not own:
+            return np.zeros(len(skin.vertices))
+        seeds += own
+        sign += [side] * len(own)
+    dist, _, nearest = dijkstra(edge_graph(skin.vertices, skin.triangles), directed=False, indices=seeds,
+                                min_only=True, return_predecessors=True, limit=reach)
+    side_of = dict(zip(seeds, sign))  # a vertex seeded by both lips (a corner) takes the lower's
+    out = np.zeros(len(skin.vertices))
+    near = np.isfinite(dist)
+    out[near] = [side_of[int(k)] for k in nearest[near]]
+    return out
+
+
+def lips_on_their_own_side(head: Head, hits: dict[str, Hit], surface: _Surface | None = None) -> dict[str, Hit]:
+    """``hits`` with each inner lip point (:data:`INNER_LIP_SIDE`) on a triangle of its own lip.
+
+    Where the lips touch, the front ray, or the snap to the surface after the fit, may
+    land on the other lip a fraction of a millimetre away: MakeHuman's upper inner lip
+    point was bound to a vertex of its lower lip, and cloned motion then opened the
+    target's upper lip with the jaw. A point whose triangle has a vertex of the other lip
+    (:func:`lip_sides`) moves to the closest point among the triangles wholly on its own;
+    its confidence and ``how`` are kept.
+    """
+    if "skin" not in head.parts:
+        return hits
+    surface = surface or _Surface(head)
+    sides = lip_sides(head, hits)
+    if not sides.any():
+        return hits
+    skin = head.parts["skin"]
+    mine = np.flatnonzero(surface.part_of == surface.names.index("skin"))  # the skin's triangles among all parts'
+    out = dict(hits)
+    for i, side in INNER_LIP_SIDE.items():
+        h = hits.get(i)
+        if h is None or h.part != "skin" or h.triangle < 0 or not (sides[skin.triangles[h.triangle]] == -side).any():
+            continue
+        own = mine[(sides[skin.triangles[surface.local[mine]]] == side).all(axis=1)]
+        if not len(own):
+            continue
+        tri, p = surface._closest_among(h.point[None], own)
+        out[i] = surface.hit(int(tri[0]), p[0], h.confidence, h.how)
+    return out

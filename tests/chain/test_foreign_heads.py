@@ -41,6 +41,7 @@ def test_makehuman_is_marked_and_its_own_targets_clone_onto_the_generic_head(tmp
         pytest.skip(f"the MakeHuman head is not there ({MAKEHUMAN_DIR})")
     pytest.importorskip("mediapipe")
     from fmc.clone.cloning import clone_targets
+    from fmc.conformance import SurfaceChecks
     from mpeg4.generic_head import load_generic_head
     from mpeg4.io import load_head, save_head
     from recon.mark import mark_file
@@ -58,6 +59,12 @@ def test_makehuman_is_marked_and_its_own_targets_clone_onto_the_generic_head(tmp
         # On the lips' and lids' rims: as deep as their neighbours, within a fifth of ES0.
         assert abs(p[inner][2] - p[outer][2]) < 0.2 * es0, (inner, p[inner], outer, p[outer])
     assert p["8.1"][1] < p["9.15"][1] < p["3.5"][1]  # mouth below nose below eyes
+    # Its lips touch: each inner lip point is on its own lip, as the artist's jaw drop
+    # shows (the upper ones were bound to the lower lip, and moved with the jaw 37 mm).
+    drop = head.with_vertices(head.morphed({"jaw_drop": 1.0})).fp_positions()
+    for i, lip in (("2.2", 1), ("2.6", 1), ("2.7", 1), ("2.3", -1), ("2.8", -1), ("2.9", -1)):
+        fall = p[i][1] - drop[i][1]
+        assert (fall < 0.003) if lip > 0 else (fall > 0.02), (i, fall)
 
     generic = load_generic_head()
     cloned = clone_targets(head, generic)
@@ -69,5 +76,15 @@ def test_makehuman_is_marked_and_its_own_targets_clone_onto_the_generic_head(tmp
     gap = lambda q: np.linalg.norm(q["2.2"] - q["2.3"])  # noqa: E731
     assert gap(jaw) - gap(rest) > 0.01  # the mouth opens by over a centimetre
     assert rest["2.1"][1] - jaw["2.1"][1] > 0.005  # the chin goes down
+    # No sheet hung across the open mouth: the upper lip's inner surface stays up (its
+    # vertices took the lower lip's motion: 203 edges near the mouth stretched past 12 mm,
+    # now 121, all at the corners' insides, which stretch as the jaw opens).
+    checks = SurfaceChecks(generic)
+    skin = moved.morphed({"jaw_drop": 1.0})["skin"]
+    near = np.linalg.norm(generic.skin.vertices - 0.5 * (rest["2.2"] + rest["2.3"]), axis=1) < 0.04
+    e = checks.edges[near[checks.edges].all(axis=1)]
+    long = np.linalg.norm(skin[e[:, 0]] - skin[e[:, 1]], axis=1) > 0.012
+    middle = np.abs(generic.skin.vertices[e[:, 0], 0] - rest["2.2"][0]) < 0.012
+    assert not (long & middle).any(), generic.skin.vertices[e[long & middle, 0]]
     width = lambda q: np.linalg.norm(q["8.3"] - q["8.4"])  # noqa: E731
     assert width(smile) - width(rest) > 0.003  # the smile widens the mouth
