@@ -263,8 +263,11 @@ def interpolation_matrix(points: np.ndarray, depth: np.ndarray, src_space: np.nd
         Metres per unit of the space's height on the source.
     forbidden : (V,) bool, optional
         Source vertices whose motion must not reach these points (the other lip): their
-        weights are dropped and the rest renormalised; triangles of forbidden vertices
-        only are never chosen.
+        triangles with a forbidden corner are never chosen, so a point over such a
+        triangle takes the nearest place on its own side. (A mixed triangle with its
+        forbidden corners' weights dropped gave the rest all the motion: on the upper lip's
+        inner surface by the mouth's corner, the corner's own, half the jaw's, where the
+        upper lip beside it stays: a sheet hung across the open mouth.)
     support : float or (N,) float
         Radius of the anti-aliasing disc about each point in the alignment space; 0 for
         none. The disc's samples are averaged with Epanechnikov weights (1 − r²/support²).
@@ -296,7 +299,7 @@ def interpolation_matrix(points: np.ndarray, depth: np.ndarray, src_space: np.nd
     sample_w = np.r_[np.ones(len(off)), np.tile(kernel, len(on))]
     src_triangles = np.asarray(src_triangles, dtype=np.int64).reshape(-1, 3)
     if forbidden is not None:
-        src_triangles = src_triangles[~forbidden[src_triangles].all(axis=1)]
+        src_triangles = src_triangles[~forbidden[src_triangles].any(axis=1)]
     index = TriangleIndex(src_space[:, :2], src_triangles)
     radius = src_space[:, 2]
     valid = np.flatnonzero(index.valid)
