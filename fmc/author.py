@@ -35,6 +35,7 @@ from mpeg4.head import Head, SparseDisplacement
 
 from .bound import bound_tables
 from .brow_crease import relaxed_brows
+from .chin import CHIN_FAPS, chin_field
 from .lip_contours import MOUTH_LINE_FPS, lip_side, mouth_line, share_lips, smooth_partition
 from .puff import PUFF_FAPS, puff_field
 from .push import PUSH_FAPS, along_axis
@@ -93,7 +94,7 @@ class FapFit:
     Attributes
     ----------
     fap : int
-    route : {"shapes", "falloff", "puff", "transform", "none"}
+    route : {"shapes", "falloff", "puff", "hat", "transform", "none"}
     error : float
         Relative error of the feature point's motion at the authoring value (0 = exact).
     leak : float
@@ -297,10 +298,12 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
         unit = fap_unit(n, fapu)
         axis = fap.axis_vector
         signs = (1.0,) if fap.direction == "U" else (-1.0, 1.0)
-        if n in PUFF_FAPS:  # no shape swells the cheek along x (fmc.puff): one smooth hat, both ways
-            disp = puff_field(head, fp_id, value * unit * axis)
+        # No shape swells the cheek along x (fmc.puff), and the shapes' chin raise sheared the
+        # lip corners (fmc.chin): the point's own smooth hat, both ways.
+        if n in PUFF_FAPS or n in CHIN_FAPS:
+            disp = (puff_field if n in PUFF_FAPS else chin_field)(head, fp_id, value * unit * axis)
             fat.add(_mesh_table(head, n, {s: {p: d.scaled(s) for p, d in disp.items()} for s in signs}, value, unit))
-            report.append(FapFit(n, "puff"))
+            report.append(FapFit(n, "puff" if n in PUFF_FAPS else "hat"))
             continue
         k = ids.index(fp_id)
         bad = unrelated(fp_id, ids)

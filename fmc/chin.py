@@ -1,0 +1,74 @@
+"""The chin raiser (FAP 18): the chin boss rises with the skin around it, the lips stay.
+
+``depress_chin`` moves the chin boss 2.10 vertically, up for positive values, by
+value × MNS (the reference, section 3). No sculpted shape of the generic head raises the
+chin alone: the fit (:func:`fmc.author._solve`) combined the lower lip's shrug with the
+mouth's other shapes, whose motion spreads over the whole lower lip and into the lip
+corners. The separation (:mod:`fmc.separate`) holds the lip points only along their FAPs'
+axes, so what was left sheared the lip corners' crease (triangles 0.06 mm across): at 300,
+within 2 mm of the inner corner 2.4, by 1.3 mm in depth and 0.45 mm vertically, and moved
+the lower lip's edge 8.2 0.8 mm back.
+
+A real stream raises the chin while the corners are stretched and the jaw opens and
+thrusts: in Xface's ``pride`` (frame 74: ``depress_chin`` 300, the inner and outer
+stretches 113, ``open_jaw`` 235 and ``thrust_jaw`` 265 after the jaw's decoupling,
+:mod:`fmc.decouple`) 50 skin triangles turned over, 40 in the inner lip corners' crease. The
+stretches alone fold 24 there (their tables are kept as authored,
+:data:`fmc.unfold.KEPT`); the chin raiser's shear added 20 (the thrust's, the lower jaw
+sliding forward under the upper lip, about as many). Keeping only its vertical motion
+(as :mod:`fmc.push` keeps the pushes' depth) left the lower lip rising between its held
+points and still shearing the crease vertically (0.66 mm): 42.
+
+:func:`chin_field` is the point's own smooth hat instead, as the cheek puffs'
+(:func:`fmc.puff.puff_field`): 1 at 2.10, 0 at every other governed feature point and
+along the lip contours between them (:func:`fmc.separate.correction_basis`), bi-harmonic
+in between. The chin boss moves by exactly value × MNS along its axis, the skin around it
+with it, the lips and their corners not at all, and no skin moves further than the point.
+
+What is left (``tests/fmc/test_chin.py``, ``benchmarks/fap_conformance.py``): the generic
+head's 2.10 sits on the lower lip's underside, 1.9 mm below 8.2 and 2.3 mm behind it
+(``scripts/build_generic_head.py`` takes the frontmost midline vertex between 2.1 and 8.2,
+which is the lip's bulge; the reference puts the chin boss on the chin's most prominent
+point, about 16 mm lower on this head, and the reconstruction places it below the lip as
+well). With 8.2 held, a chin raised by more than about 90 units passes its point above the
+lip's edge and the skin between turns over, whatever the field: ``depress_chin`` alone
+turns 6 triangles over at 300 (as before) and 20 at 512 (26 before). That is a matter of
+the heads' feature points, not of the tables.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mpeg4.head import Head, SparseDisplacement
+
+from .puff import puff_field
+
+__all__ = ["CHIN_FAPS", "chin_field"]
+
+#: The chin's vertical FAP: depress_chin (2.10, +y, MNS).
+CHIN_FAPS = (18,)
+
+
+def chin_field(head: Head, fp_id: str, goal: np.ndarray) -> dict[str, SparseDisplacement]:
+    """The skin displacement of ``depress_chin`` whose point ``fp_id`` (2.10) moves by ``goal``.
+
+    Parameters
+    ----------
+    head : Head
+        With the feature points the FAPs use on its skin.
+    fp_id : str
+        The chin boss (2.10).
+    goal : (3,) float
+        The point's motion at the table's value, metres (value × MNS along +y).
+
+    Returns
+    -------
+    dict
+        ``{"skin": SparseDisplacement}``: ``goal`` times the point's hat (1 at the point, 0
+        at every other governed point and along the lip contours, nothing beyond
+        :data:`fmc.separate.REACH` or 1.5 ``|goal|`` of them all).
+    """
+    # The same hat as a cheek puff's: a field the separation leaves as it is (it moves no
+    # other FAP's point), with nothing in the lip corners' crease for other FAPs to fold.
+    return puff_field(head, fp_id, goal)
