@@ -79,13 +79,14 @@ from .decimate import MAX_MARK_TRIANGLES, carry_back, decimate
 from .frame import AXES, UNITS, Frame, check_mesh, estimate_frame, refine_frame, unit_from_face
 from .lift import Hit, _Surface, lift
 from .parts import _inside_binding, check_given_parts, find_parts, given_parts, parse_part_options
-from .points import fitted_points, hidden_points, lips_on_their_own_side
+from .points import fitted_points, hidden_points, lips_on_their_own_side, pupils_in_openings
 from .views import Views, landmark_detector, render_views, untextured_guesses
 
 __all__ = ["UNITS", "AXES", "Frame", "check_mesh", "estimate_frame", "refine_frame", "Views", "render_views",
            "landmark_detector", "untextured_guesses", "Hit", "lift", "find_parts", "given_parts", "check_given_parts",
            "parse_part_options",
-           "unit_from_face", "fitted_points", "lips_on_their_own_side", "hidden_points",
+           "unit_from_face", "fitted_points", "lips_on_their_own_side", "pupils_in_openings",
+           "hidden_points",
            "Problem", "CHECKS", "check_points", "Marking", "mark", "mark_file", "load_mesh", "default_fdp_path",
            "MIN_POINTS", "MAX_MARK_TRIANGLES"]
 
@@ -338,6 +339,7 @@ def _mark(raw: Head, where: str, warnings: list[str], detect, unit, up, forward,
     hits = fitted_points(head, hits, set() if guessed is None else guessed(found), getattr(detect, "give", 0.0),
                          surface)
     hits = lips_on_their_own_side(head, hits, surface)
+    hits = pupils_in_openings(head, hits, surface)
     hits = hidden_points(head, hits, surface=surface)
     bindings = {}
     for i, h in hits.items():

@@ -3,7 +3,9 @@
 :func:`fitted_points` fits the generic head's skin to the mesh, following the points found
 on it, and takes the points a grey render can only guess from the fit;
 :func:`lips_on_their_own_side` keeps the inner lip points on their own lip where the lips
-touch; :func:`hidden_points` places those no view shows and no fit reached (teeth, tongue).
+touch; :func:`pupils_in_openings` centres the pupils of a head without eyeballs in its
+eye openings; :func:`hidden_points` places those no view shows and no fit reached (teeth,
+tongue).
 """
 
 from __future__ import annotations
@@ -19,12 +21,15 @@ from recon.shape.deform import fit_similarity
 
 from .lift import Hit, _Surface
 
-__all__ = ["fitted_points", "lips_on_their_own_side", "hidden_points"]
+__all__ = ["fitted_points", "lips_on_their_own_side", "pupils_in_openings", "hidden_points"]
 
 #: The inner lip points by lip (+1 upper, -1 lower), and the outer points each lip is
 #: known by: the vermilion's top and bottom and the philtrum's and chin's sides of it.
 INNER_LIP_SIDE = {"2.2": 1.0, "2.6": 1.0, "2.7": 1.0, "2.3": -1.0, "2.8": -1.0, "2.9": -1.0}
 OUTER_LIP_POINTS = {1.0: ("8.1", "8.5", "8.6"), -1.0: ("8.2", "8.7", "8.8")}
+
+#: Each pupil's eye: its two corners and its lid margins' centres (upper, lower).
+PUPIL_EYE = {"3.5": (("3.7", "3.11"), ("3.1", "3.3")), "3.6": (("3.12", "3.8"), ("3.2", "3.4"))}
 
 # How far along the mesh (metres) a lip's outer points claim its vertices: past the
 # vermilion's depth (about 15 mm at the middle, round to the inner surface), short of the
@@ -212,4 +217,34 @@ def lips_on_their_own_side(head: Head, hits: dict[str, Hit], surface: _Surface |
             continue
         tri, p = surface._closest_among(h.point[None], own)
         out[i] = surface.hit(int(tri[0]), p[0], h.confidence, h.how)
+    return out
+
+
+def pupils_in_openings(head: Head, hits: dict[str, Hit], surface: _Surface | None = None) -> dict[str, Hit]:
+    """``hits`` with each pupil on the skin (a head without eyeballs) at its eye opening's
+    centre: across, midway between the eye's corners (the reference's rule for the lid
+    margins' centres); up, midway between the lid margins; on the surface the front ray
+    there meets (the socket behind the opening, or a lid).
+
+    A grey render of an empty socket shows the detector no pupil: on MakeHuman's head it
+    put the left one 10 mm inside the eye's centre, and the eye separation (ES0, the FAPU
+    of the eyes' and brows' FAPs) was 17 % short. A pupil on an eyeball is left alone.
+    The confidence is the lower of the corners'; ``how`` is ``"eye opening"``.
+    """
+    if "skin" not in head.parts:
+        return hits
+    surface = surface or _Surface(head)
+    out = dict(hits)
+    for i, (corners, lids) in PUPIL_EYE.items():
+        h = hits.get(i)
+        if h is None or h.part != "skin" or not all(k in hits for k in corners + lids):
+            continue
+        across = 0.5 * (hits[corners[0]].point + hits[corners[1]].point)
+        up = 0.5 * (hits[lids[0]].point[1] + hits[lids[1]].point[1])
+        start = np.array([across[0], up, across[2] + 0.05])
+        tri, loc = surface.cast(start[None], np.array([[0.0, 0.0, -1.0]]), radius=0.0)
+        if tri[0] < 0:
+            tri, loc = surface.closest(np.array([[across[0], up, across[2]]]), ["skin"])
+        confidence = min(h.confidence, hits[corners[0]].confidence, hits[corners[1]].confidence)
+        out[i] = surface.hit(int(tri[0]), loc[0], confidence, "eye opening")
     return out
