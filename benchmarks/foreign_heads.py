@@ -20,7 +20,10 @@ at full weight, and how far the lower teeth move on average beside the chin (2.1
 MakeHuman has no teeth of its own to give (``teeth_lower_mm``, ``chin_mm``; the generic
 head's own jaw opening moves them 0.76 times as far as its chin).
 
-No hand-checked point table ships yet, so no marking error is printed.
+On MakeHuman, the marking against the points placed on it by hand
+(``recon/data/makehuman_hm08_points.csv``, :func:`recon.evaluate.makehuman.reference_points`):
+``marking_error_median_pct`` and ``marking_error_p90_pct`` (% of ES0; targets 3 and 8) and
+the five points furthest off.
 
 Run: ``python3 benchmarks/foreign_heads.py [MESH ...] [--no-streams]``
 Prints ``head.name: value`` lines.
@@ -115,6 +118,23 @@ def measure(name: str, path: Path, streams: list[Path]) -> dict[str, float]:
     return out
 
 
+def makehuman_marking(head, glb: Path) -> dict[str, float]:
+    """``fmc mark`` on the MakeHuman head against the hand-placed points (% of ES0)."""
+    from recon.evaluate.makehuman import marking_error, reference_points
+    from recon.mark import mark
+
+    result = mark(glb)
+    skin = head.parts["skin"].vertices  # the GLB keeps the head's vertex order
+    found = {i: b.position(skin) for i, b in result.fdp.bindings.items() if b.part == "skin"}
+    errors = marking_error(found, reference_points()[0])
+    out = {"marking_error_median_pct": float(np.median(list(errors.values()))),
+           "marking_error_p90_pct": float(np.percentile(list(errors.values()), 90)),
+           "marking_points_compared": len(errors)}
+    for i in sorted(errors, key=errors.get, reverse=True)[:5]:
+        out[f"marking_error_pct.{i}"] = errors[i]
+    return out
+
+
 def makehuman_as_source(glb: Path) -> dict[str, float]:
     """MakeHuman's own targets cloned onto the generic head: each at full weight."""
     from fmc.clone.cloning import clone_targets
@@ -158,8 +178,11 @@ def main(argv=None) -> int:
     makehuman = None
     if (MAKEHUMAN_DIR / "base.obj").exists():
         makehuman = tmp / "makehuman.glb"
-        save_head(makehuman_head(targets=MAKEHUMAN_TARGETS), makehuman)
+        raw = makehuman_head(targets=MAKEHUMAN_TARGETS)
+        save_head(raw, makehuman)
         heads["makehuman"] = makehuman
+        for k, v in makehuman_marking(raw, makehuman).items():
+            print(f"makehuman.{k}: {fmt_value(v)}", flush=True)
     if MASK.exists():
         heads["mediapipe_mask"] = MASK
     for p in args.meshes:

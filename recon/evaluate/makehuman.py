@@ -7,6 +7,10 @@ half-width is 0.5–0.6 dm up to 5.8 dm and the shoulders spread below; the chin
 point is at 6.15 dm), in metres. Its
 ``.target`` files (FACSHuman action units and emotions, HBC visemes: ``vertex dx dy dz``
 lines, indices into ``base.obj``) become morph targets of that head.
+
+:func:`reference_points` reads the feature points placed on it by hand
+(``recon/data/makehuman_hm08_points.csv``, how they were made in its header), and
+:func:`marking_error` measures points found on the head against them.
 """
 
 from __future__ import annotations
@@ -20,10 +24,13 @@ import numpy as np
 from mpeg4.errors import InputError
 from mpeg4.head import Head, Part, SparseDisplacement
 
-__all__ = ["MAKEHUMAN_DIR", "makehuman_head", "read_target"]
+__all__ = ["MAKEHUMAN_DIR", "REFERENCE_POINTS", "makehuman_head", "read_target", "reference_points", "marking_error"]
 
 #: The shared MakeHuman folder beside the project.
 MAKEHUMAN_DIR = Path(__file__).resolve().parents[3] / "shared" / "data" / "foreign_heads" / "makehuman"
+
+#: The hand-placed feature points of the hm08 mesh.
+REFERENCE_POINTS = Path(__file__).resolve().parents[1] / "data" / "makehuman_hm08_points.csv"
 
 _BODY = 13380  # vertices of the body group; the rest are helpers
 _NECK_DM = 5.85  # the head is the body above this height, decimetres
@@ -60,3 +67,31 @@ def makehuman_head(folder: str | os.PathLike = MAKEHUMAN_DIR, targets: Mapping[s
         morph[name] = {"skin": SparseDisplacement(slot[idx[on]], d[on] * 0.1)}
     return Head({"skin": Part("skin", v[ids] * 0.1, slot[tri])}, morph_targets=morph,
                 metadata={"units": "m", "name": "MakeHuman hm08 head"})
+
+
+def reference_points(folder: str | os.PathLike = MAKEHUMAN_DIR) -> tuple[dict[str, np.ndarray], dict[str, float]]:
+    """The hand-placed feature points on the head of :func:`makehuman_head` (metres, its frame),
+    and how far each reading may be off (metres)."""
+    import csv
+
+    import trimesh
+
+    mesh = trimesh.load(Path(folder) / "base.obj", process=False, force="mesh", skip_materials=True,
+                        maintain_order=True)
+    v = np.asarray(mesh.vertices, dtype=np.float64) * 0.1
+    rows = [line for line in REFERENCE_POINTS.read_text().splitlines() if line and not line.startswith("#")]
+    points, unsure = {}, {}
+    for row in csv.DictReader(rows):
+        idx = np.array(row["vertices"].split(), dtype=np.int64)
+        w = np.array(row["weights"].split(), dtype=np.float64)
+        points[row["fp"]] = w @ v[idx]
+        unsure[row["fp"]] = float(row["uncertainty_mm"]) / 1000.0
+    return points, unsure
+
+
+def marking_error(found: Mapping[str, np.ndarray], reference: Mapping[str, np.ndarray]) -> dict[str, float]:
+    """Per feature point both give, the distance between them in % of the reference's eye
+    separation (ES0: its pupils' distance across)."""
+    es0 = abs(float(reference["3.5"][0] - reference["3.6"][0]))
+    return {i: 100.0 * float(np.linalg.norm(np.asarray(found[i]) - reference[i])) / es0
+            for i in reference if i in found}
