@@ -57,3 +57,44 @@ def test_tables_that_already_conform_keep_their_motion(head):
             continue
         for a, b in zip(table.meshes, again[(n, hl)].meshes):
             np.testing.assert_allclose(b.displacements, a.displacements, rtol=1e-9, atol=1e-15)
+
+
+def test_a_lip_fap_is_scaled_with_the_partner_a_player_fills_in(head):
+    """A lip FAP played alone brings its other contour's partner at the same value
+    (fill_lip_contours). Cloned onto MakeHuman, the outer lower lip's table moved the inner
+    point 2.8 by a tenth of its motion, and 2.8 went 10 % too far: the partner's share is
+    counted in, so the two together move it by value × FAPU."""
+    from mpeg4.io.fap import fill_lip_contours
+
+    inner, outer = 10, 57
+    fat = FAT(head.fat)
+    t_in, t_out = head.fat[(inner, 0)], head.fat[(outer, 0)]
+    # The outer table takes a tenth of the inner one's motion on top of its own.
+    lent = FaceDefTable(outer, 0, [FaceDefMesh(a.part, a.borders, a.indices, a.displacements + 0.1 * b.displacements)
+                                   for a, b in zip(*(_on(t_out, t_in)))], list(t_out.transforms))
+    fat.add(lent)
+    out, _ = calibrate_tables(head, fat)
+    base = {k: p.vertices for k, p in head.parts.items()}
+    for v in (-300.0, 300.0):
+        played = {n: apply_fat(f, base, fill_lip_contours({inner: v}), head.fapu) for n, f in (("before", fat),
+                                                                                               ("after", out))}
+        move = {k: float((head.fp_position("2.8", m) - head.fp_position("2.8")) @ FAPS[inner].axis_vector)
+                for k, m in played.items()}
+        want = v * fap_unit(inner, head.fapu)
+        assert abs(move["before"] / want - 1) > 0.05
+        assert move["after"] == pytest.approx(want, rel=1e-6)
+
+
+def _on(a, b):
+    """The meshes of tables ``a`` and ``b`` brought onto ``a``'s vertices (same parts and borders)."""
+    out_a, out_b = [], []
+    for ma in a.meshes:
+        mb = next(m for m in b.meshes if m.part == ma.part)
+        idx = np.union1d(ma.indices, mb.indices)
+        da = np.zeros((len(idx),) + ma.displacements.shape[1:])
+        db = np.zeros_like(da)
+        da[np.searchsorted(idx, ma.indices)] = ma.displacements
+        db[np.searchsorted(idx, mb.indices)] = mb.displacements
+        out_a.append(FaceDefMesh(ma.part, ma.borders, idx, da))
+        out_b.append(FaceDefMesh(mb.part, mb.borders, idx, db))
+    return out_a, out_b
