@@ -25,7 +25,8 @@ head's own jaw opening moves them 0.76 times as far as its chin).
 On MakeHuman, the marking against the points placed on it by hand
 (``recon/data/makehuman_hm08_points.csv``, :func:`recon.evaluate.makehuman.reference_points`):
 ``marking_error_median_pct`` and ``marking_error_p90_pct`` (% of ES0; targets 3 and 8) and
-the five points furthest off.
+the five points furthest off; on the MediaPipe mask, against its own landmarks through
+the project's landmark table (:func:`mask_marking`).
 
 Run: ``python3 benchmarks/foreign_heads.py [MESH ...] [--no-streams]``
 Prints ``head.name: value`` lines.
@@ -147,6 +148,29 @@ def makehuman_marking(head, glb: Path) -> dict[str, float]:
     return out
 
 
+def mask_marking(path: Path) -> dict[str, float]:
+    """``fmc mark`` on the MediaPipe mask against its own landmarks: its vertex ``i`` is the
+    face mesh's landmark ``i``, so the project's landmark → feature point table
+    (:func:`recon.landmarks.mapping.load_mapping`, fitted to photos: its rows' own error
+    is 1-5 % of the IPD) applied to the vertices gives where the points belong (% of the
+    ES0 of those points, the eyes' centres between their corners)."""
+    import trimesh
+
+    from recon.landmarks.mapping import load_mapping
+    from recon.mark import mark
+
+    v = np.asarray(trimesh.load(path, process=False, force="mesh", maintain_order=True).vertices, dtype=np.float64)
+    reference = {fp: np.asarray(r.weights) @ v[list(r.landmarks)] for fp, r in load_mapping().items()
+                 if max(r.landmarks) < len(v)}
+    es0 = abs(reference["3.7"][0] + reference["3.11"][0] - reference["3.12"][0] - reference["3.8"][0]) / 2
+    result = mark(path)
+    found = {i: b.position(v) for i, b in result.fdp.bindings.items() if b.part == "skin"}
+    errors = [100.0 * float(np.linalg.norm(found[i] - reference[i])) / es0 for i in reference if i in found]
+    return {"marking_error_vs_facemesh_median_pct": float(np.median(errors)),
+            "marking_error_vs_facemesh_p90_pct": float(np.percentile(errors, 90)),
+            "marking_points_compared": len(errors)}
+
+
 def makehuman_as_source(glb: Path) -> dict[str, float]:
     """MakeHuman's own targets cloned onto the generic head: each at full weight."""
     from fmc.clone.cloning import clone_targets
@@ -197,6 +221,8 @@ def main(argv=None) -> int:
             print(f"makehuman.{k}: {fmt_value(v)}", flush=True)
     if MASK.exists():
         heads["mediapipe_mask"] = MASK
+        for k, v in mask_marking(MASK).items():
+            print(f"mediapipe_mask.{k}: {fmt_value(v)}", flush=True)
     for p in args.meshes:
         heads[p.stem] = p
     if not heads:
