@@ -25,15 +25,16 @@ along the lip contours between them (:func:`fmc.separate.correction_basis`), bi-
 in between. The chin boss moves by exactly value × MNS along its axis, the skin around it
 with it, the lips and their corners not at all, and no skin moves further than the point.
 
-What is left (``tests/fmc/test_chin.py``, ``benchmarks/fap_conformance.py``): the generic
-head's 2.10 sits on the lower lip's underside, 1.9 mm below 8.2 and 2.3 mm behind it
-(``scripts/build_generic_head.py`` takes the frontmost midline vertex between 2.1 and 8.2,
-which is the lip's bulge; the reference puts the chin boss on the chin's most prominent
-point, about 16 mm lower on this head, and the reconstruction places it below the lip as
-well). With 8.2 held, a chin raised by more than about 90 units passes its point above the
-lip's edge and the skin between turns over, whatever the field: ``depress_chin`` alone
-turns 6 triangles over at 300 (as before) and 20 at 512 (26 before). That is a matter of
-the heads' feature points, not of the tables.
+The chin boss is where the reference puts it, the chin's most prominent point
+(``scripts/build_generic_head.py``: the frontmost point of the midline profile below the
+mentolabial sulcus, 17.1 mm below 8.2 and 14.8 mm above 2.1 on the generic head). It sat
+on the lower lip's underside before, 1.9 mm below 8.2 (the frontmost midline vertex
+between 2.1 and 8.2 was the lip's bulge), so that a chin raised by more than about 90
+units passed its point over the held lip's edge and the skin between turned over:
+``depress_chin`` alone turned 6 triangles over at 300 and 20 at 512, pride's frame 74 34
+(``tests/fmc/test_chin.py``). With the sulcus between them the hat has room: none turns
+over alone at ±300 or 512, no skin moves further than the point, and frame 74 turns the 20
+over that the stretches and the jaw turn without it.
 """
 
 from __future__ import annotations

