@@ -49,7 +49,7 @@ ANATOMY = {
     "2.1": "bottom of the chin outline", "2.2": "inner upper lip, midline", "2.3": "inner lower lip, midline",
     "2.4": "inner lip corner, left", "2.5": "inner lip corner, right", "2.6": "inner upper lip, left half",
     "2.7": "inner upper lip, right half", "2.8": "inner lower lip, left half", "2.9": "inner lower lip, right half",
-    "2.10": "below the lower lip, midline", "2.11": "chin outline, left", "2.12": "chin outline, right",
+    "2.10": "chin boss (most prominent point of the chin), midline", "2.11": "chin outline, left", "2.12": "chin outline, right",
     "2.13": "lower jaw, left", "2.14": "lower jaw, right",
     "3.1": "upper lid margin, left eye", "3.2": "upper lid margin, right eye", "3.3": "lower lid margin, left eye",
     "3.4": "lower lid margin, right eye", "3.5": "left iris centre", "3.6": "right iris centre",
