@@ -144,6 +144,15 @@ def test_fuzzed_fields_of_a_real_file_are_read_or_refused_in_one_line(key, value
         assert "\n" not in str(e) and str(e).startswith("fuzz.fdp.json")
 
 
+def test_a_key_with_a_line_break_is_named_on_one_line():
+    """The fuzzing found it: a part named "a\nb" put its line break in the message."""
+    data = json.loads(EXAMPLE_FDP.read_text())
+    data["parts"] = {"a\nb": 1}
+    with pytest.raises(InputError) as e:
+        parse_fdp(data, where="key.fdp.json")
+    assert "\n" not in str(e.value) and 'parts["a\\nb"]' in str(e.value)
+
+
 # --- .fap streams ---------------------------------------------------------------------
 
 @pytest.mark.parametrize("text, message", [

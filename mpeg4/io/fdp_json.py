@@ -115,8 +115,10 @@ def _json_place(path) -> str:
     for p in parts:
         if isinstance(p, int):
             text += f"[{p}]"
-        elif "." in str(p):
-            text += f'["{p}"]'
+        elif "." in str(p) or not str(p).isprintable():
+            # A key with a dot, or a line break or other control character (an error is one
+            # line), is written as a JSON string.
+            text += f"[{json.dumps(str(p))}]"
         else:
             text += f".{p}" if text else str(p)
     return text or "top level"
