@@ -19,12 +19,12 @@ def generic():
 
 
 def _chin_bump(head, amplitude_m):
-    """The skin pushed forward between the lower lip (8.2) and the chin (2.1): a smooth
-    bump on the midline that no feature point holds."""
+    """The skin pushed forward between the lower lip (8.2) and the chin boss (2.10), over
+    the mentolabial sulcus: a smooth bump on the midline that no feature point holds."""
     v = head.skin.vertices
-    y0 = 0.5 * (head.fp_position("8.2")[1] + head.fp_position("2.1")[1])
+    y0 = 0.5 * (head.fp_position("8.2")[1] + head.fp_position("2.10")[1])
     outer = np.clip((v[:, 2] - 0.095) / 0.01, 0.0, 1.0)  # the chin's surface, not the mouth inside it
-    w = np.exp(-0.5 * (((v[:, 1] - y0) / 0.005) ** 2 + (v[:, 0] / 0.012) ** 2)) * outer
+    w = np.exp(-0.5 * (((v[:, 1] - y0) / 0.0035) ** 2 + (v[:, 0] / 0.012) ** 2)) * outer
     return head.with_vertices({"skin": v + amplitude_m * w[:, None] * [0.0, 0.0, 1.0]}), w
 
 
@@ -57,7 +57,11 @@ def test_the_chin_follows_the_outline_between_the_points(generic):
     before = np.linalg.norm(head.skin.vertices - person.skin.vertices, axis=1)[bump]
     after = np.linalg.norm(out.skin.vertices - person.skin.vertices, axis=1)[bump]
     assert np.median(before) > 1.5e-3
-    assert np.median(after) < 0.35 * np.median(before), (np.median(before), np.median(after))
+    # Measured 0.46 of the error left (0.33 when the bump sat between 8.2 and 2.1, 30 mm
+    # apart, before 2.10 moved from the lip's underside to the chin boss: now 17 mm lie
+    # between the held points over the sulcus, room for four controls 3 mm apart and 3 mm
+    # clear of the points, and the bump is narrower to stay clear of both).
+    assert np.median(after) < 0.55 * np.median(before), (np.median(before), np.median(after))
     # The feature points stay where they were put, the eyes and teeth too; the head
     # elsewhere is the same.
     assert max(np.linalg.norm(out.fp_position(i) - head.fp_position(i)) for i in targets) < 1e-6
