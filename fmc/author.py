@@ -35,7 +35,7 @@ from mpeg4.head import Head, SparseDisplacement
 
 from .bound import bound_tables
 from .brow_crease import relaxed_brows
-from .chin import CHIN_FAPS, chin_field
+from .chin import CHIN_FAPS
 from .lip_contours import MOUTH_LINE_FPS, lip_side, mouth_line, share_lips, smooth_partition
 from .puff import PUFF_FAPS, puff_field
 from .push import PUSH_FAPS, along_axis
@@ -301,7 +301,7 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
         # No shape swells the cheek along x (fmc.puff), and the shapes' chin raise sheared the
         # lip corners (fmc.chin): the point's own smooth hat, both ways.
         if n in PUFF_FAPS or n in CHIN_FAPS:
-            disp = (puff_field if n in PUFF_FAPS else chin_field)(head, fp_id, value * unit * axis)
+            disp = puff_field(head, fp_id, value * unit * axis)
             fat.add(_mesh_table(head, n, {s: {p: d.scaled(s) for p, d in disp.items()} for s in signs}, value, unit))
             report.append(FapFit(n, "puff" if n in PUFF_FAPS else "hat"))
             continue

@@ -19,9 +19,9 @@ sliding forward under the upper lip, about as many). Keeping only its vertical m
 (as :mod:`fmc.push` keeps the pushes' depth) left the lower lip rising between its held
 points and still shearing the crease vertically (0.66 mm): 42.
 
-:func:`chin_field` is the point's own smooth hat instead, as the cheek puffs'
-(:func:`fmc.puff.puff_field`): 1 at 2.10, 0 at every other governed feature point and
-along the lip contours between them (:func:`fmc.separate.correction_basis`), bi-harmonic
+Its table is now the point's own smooth hat, as the cheek puffs' are
+(:func:`fmc.puff.puff_field`, which :func:`fmc.author.author_from_shapes` calls for both):
+1 at 2.10, 0 at every other governed feature point and along the lip contours between them (:func:`fmc.separate.correction_basis`), bi-harmonic
 in between. The chin boss moves by exactly value × MNS along its axis, the skin around it
 with it, the lips and their corners not at all, and no skin moves further than the point.
 
@@ -39,37 +39,7 @@ over that the stretches and the jaw turn without it.
 
 from __future__ import annotations
 
-import numpy as np
-
-from mpeg4.head import Head, SparseDisplacement
-
-from .puff import puff_field
-
-__all__ = ["CHIN_FAPS", "chin_field"]
+__all__ = ["CHIN_FAPS"]
 
 #: The chin's vertical FAP: depress_chin (2.10, +y, MNS).
 CHIN_FAPS = (18,)
-
-
-def chin_field(head: Head, fp_id: str, goal: np.ndarray) -> dict[str, SparseDisplacement]:
-    """The skin displacement of ``depress_chin`` whose point ``fp_id`` (2.10) moves by ``goal``.
-
-    Parameters
-    ----------
-    head : Head
-        With the feature points the FAPs use on its skin.
-    fp_id : str
-        The chin boss (2.10).
-    goal : (3,) float
-        The point's motion at the table's value, metres (value × MNS along +y).
-
-    Returns
-    -------
-    dict
-        ``{"skin": SparseDisplacement}``: ``goal`` times the point's hat (1 at the point, 0
-        at every other governed point and along the lip contours, nothing beyond
-        :data:`fmc.separate.REACH` or 1.5 ``|goal|`` of them all).
-    """
-    # The same hat as a cheek puff's: a field the separation leaves as it is (it moves no
-    # other FAP's point), with nothing in the lip corners' crease for other FAPs to fold.
-    return puff_field(head, fp_id, goal)
