@@ -228,7 +228,7 @@ def pupils_in_openings(head: Head, hits: dict[str, Hit], surface: _Surface | Non
 
     A grey render of an empty socket shows the detector no pupil: on MakeHuman's head it
     put the left one 10 mm inside the eye's centre, and the eye separation (ES0, the FAPU
-    of the eyes' and brows' FAPs) was 17 % short. A pupil on an eyeball is left alone.
+    of the eyes' and brows' FAPs) came out short by about as much. A pupil on an eyeball is left alone.
     The confidence is the lower of the corners'; ``how`` is ``"eye opening"``.
     """
     if "skin" not in head.parts:

@@ -68,7 +68,7 @@ def test_makehuman_is_marked_and_its_own_targets_clone_onto_the_generic_head(tmp
         assert abs(p[inner][2] - p[outer][2]) < 0.2 * es0, (inner, p[inner], outer, p[outer])
     assert p["8.1"][1] < p["9.15"][1] < p["3.5"][1]  # mouth below nose below eyes
     # No eyeballs: each pupil at its opening's centre (the detector put the left one 10 mm
-    # inside it on the grey render's empty socket, and ES0 came out 17 % short).
+    # inside it on the grey render's empty socket, and ES0 came out short by about as much).
     for pupil, a, b in (("3.5", "3.7", "3.11"), ("3.6", "3.12", "3.8")):
         assert abs(p[pupil][0] - 0.5 * (p[a][0] + p[b][0])) < 0.02 * es0, pupil
     # Its lips touch: each inner lip point is on its own lip, as the artist's jaw drop
