@@ -16,7 +16,8 @@ from scipy.sparse.csgraph import dijkstra
 from .head import Head
 from .seams import seam_copies
 
-__all__ = ["DETOUR", "edge_graph", "fp_vertex", "contour_path", "bilaplacian", "triangle_normals", "inverted_triangles"]
+__all__ = ["DETOUR", "edge_graph", "fp_vertex", "contour_path", "nearest_seed_labels", "bilaplacian", "triangle_normals",
+           "inverted_triangles"]
 
 # A path longer than this many times the straight distance between its feature points
 # has not found the contour.
@@ -84,6 +85,31 @@ def contour_path(head: Head, chain: tuple[str, ...], graph: sparse.csr_matrix | 
         if length > DETOUR * np.linalg.norm(skin.vertices[a] - skin.vertices[b]):
             return None
         out.append(path)
+    return out
+
+
+def nearest_seed_labels(graph: sparse.csr_matrix, seeds, labels, reach: float) -> np.ndarray:
+    """(N,) the label of the seed nearest each vertex along the mesh, 0 beyond ``reach``.
+
+    Parameters
+    ----------
+    graph : (N, N) scipy.sparse.csr_matrix
+        Edge lengths (:func:`edge_graph`).
+    seeds : (k,) int
+        Vertex ids; a vertex given twice keeps the label given last.
+    labels : (k,) float
+        One per seed.
+    reach : float
+        Metres along the mesh.
+    """
+    out = np.zeros(graph.shape[0])
+    if not len(seeds):
+        return out
+    dist, _, source = dijkstra(graph, directed=False, indices=list(seeds), min_only=True,
+                               return_predecessors=True, limit=reach)
+    label_of = dict(zip((int(k) for k in seeds), labels))
+    near = np.isfinite(dist)
+    out[near] = [label_of[int(k)] for k in source[near]]
     return out
 
 

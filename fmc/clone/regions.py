@@ -24,7 +24,7 @@ from skimage.measure import points_in_poly
 from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.head import Head
 
-from mpeg4.surface import edge_graph
+from mpeg4.surface import edge_graph, nearest_seed_labels
 
 __all__ = ["MOUTH_REGION_FPS", "region_scales", "normalisation", "mouth_scale", "face_scale", "LIP_FPS",
            "UPPER_LIP_FPS", "LOWER_LIP_FPS", "CORNER_FPS", "lip_sides_on_mesh", "lip_classes", "lip_vertex_classes"]
@@ -115,8 +115,6 @@ def lip_sides_on_mesh(head: Head, reach: float) -> np.ndarray:
     Along the mesh the two lips meet only at the corners (and deep in the mouth), so a
     lip's inner surface, which curls back behind the other lip, stays with its own lip.
     """
-    from scipy.sparse.csgraph import dijkstra
-
     skin = head.skin
     seeds, side = [], []
     for ids, sign in ((UPPER_LIP_FPS, 1.0), (LOWER_LIP_FPS, -1.0)):
@@ -125,16 +123,7 @@ def lip_sides_on_mesh(head: Head, reach: float) -> np.ndarray:
             if b is not None and b.part == "skin":
                 seeds += list(b.vertices)
                 side += [sign] * len(b.vertices)
-    out = np.zeros(skin.n_vertices)
-    if not seeds:
-        return out
-    graph = edge_graph(skin.vertices, skin.triangles)
-    dist, _, source = dijkstra(graph, directed=False, indices=seeds, min_only=True, return_predecessors=True,
-                               limit=reach)
-    sign_of = dict(zip(seeds, side))
-    near = np.isfinite(dist)
-    out[near] = [sign_of[int(k)] for k in source[near]]
-    return out
+    return nearest_seed_labels(edge_graph(skin.vertices, skin.triangles), seeds, side, reach)
 
 
 def lip_classes(space: np.ndarray, lip_fps: dict[str, np.ndarray]) -> np.ndarray:

@@ -167,9 +167,7 @@ def lip_sides(head: Head, hits: Mapping[str, Hit], reach: float = _LIP_CLAIM) ->
     Along the mesh the two lips meet only at the corners (and deep in the mouth), so
     vertices where the lips touch, a fraction of a millimetre apart, are told apart.
     """
-    from scipy.sparse.csgraph import dijkstra
-
-    from mpeg4.surface import edge_graph
+    from mpeg4.surface import edge_graph, nearest_seed_labels
 
     skin = head.parts["skin"]
     seeds, sign = [], []
@@ -180,13 +178,8 @@ def lip_sides(head: Head, hits: Mapping[str, Hit], reach: float = _LIP_CLAIM) ->
             return np.zeros(len(skin.vertices))
         seeds += own
         sign += [side] * len(own)
-    dist, _, nearest = dijkstra(edge_graph(skin.vertices, skin.triangles), directed=False, indices=seeds,
-                                min_only=True, return_predecessors=True, limit=reach)
-    side_of = dict(zip(seeds, sign))  # a vertex seeded by both lips (a corner) takes the lower's
-    out = np.zeros(len(skin.vertices))
-    near = np.isfinite(dist)
-    out[near] = [side_of[int(k)] for k in nearest[near]]
-    return out
+    # A vertex seeded by both lips (a corner) takes the lower's, given last.
+    return nearest_seed_labels(edge_graph(skin.vertices, skin.triangles), seeds, sign, reach)
 
 
 def lips_on_their_own_side(head: Head, hits: dict[str, Hit], surface: _Surface | None = None) -> dict[str, Hit]:
