@@ -94,7 +94,9 @@ def lip_gap_pbm(head, player) -> float:
     return 1e3 * float(np.linalg.norm(head.fp_position("2.2", parts) - head.fp_position("2.3", parts)))
 
 
-def measure(name: str, path: Path, streams: list[Path]) -> dict[str, float]:
+def measure(name: str, path: Path, streams: list[Path], reference=None) -> dict[str, float]:
+    """The head at ``path`` marked (when it has no points), cloned and played;
+    ``reference(target)``, when given, adds the marking's error."""
     from chain.clone import target_head
     from fap_conformance import play_file
     from fmc.clone import clone
@@ -109,6 +111,8 @@ def measure(name: str, path: Path, streams: list[Path]) -> dict[str, float]:
     target, warnings = target_head(path)
     out["mark_s"] = time.perf_counter() - t
     out["points"] = len(target.feature_points)
+    if reference is not None:
+        out.update(reference(target))
     print(f"{name}.parts: {', '.join(target.parts)}")
     try:
         target.fapu
@@ -131,14 +135,14 @@ def measure(name: str, path: Path, streams: list[Path]) -> dict[str, float]:
     return out
 
 
-def makehuman_marking(head, glb: Path) -> dict[str, float]:
-    """``fmc mark`` on the MakeHuman head against the hand-placed points (% of ES0)."""
+def makehuman_marking(target, raw) -> dict[str, float]:
+    """The MakeHuman head as marked for cloning (``target``) against the hand-placed points
+    (% of ES0), its points taken on the file's own vertices (``raw``: marking keeps the
+    one-part head's vertex order)."""
     from recon.evaluate.makehuman import marking_error, reference_points
-    from recon.mark import mark
 
-    result = mark(glb)
-    skin = head.parts["skin"].vertices  # the GLB keeps the head's vertex order
-    found = {i: b.position(skin) for i, b in result.fdp.bindings.items() if b.part == "skin"}
+    skin = raw.parts["skin"].vertices
+    found = {i: b.position(skin) for i, b in target.feature_points.items() if b.part == "skin"}
     errors = marking_error(found, reference_points()[0])
     out = {"marking_error_median_pct": float(np.median(list(errors.values()))),
            "marking_error_p90_pct": float(np.percentile(list(errors.values()), 90)),
@@ -148,8 +152,8 @@ def makehuman_marking(head, glb: Path) -> dict[str, float]:
     return out
 
 
-def mask_marking(path: Path) -> dict[str, float]:
-    """``fmc mark`` on the MediaPipe mask against its own landmarks: its vertex ``i`` is the
+def mask_marking(target, path: Path) -> dict[str, float]:
+    """The MediaPipe mask as marked for cloning against its own landmarks: its vertex ``i`` is the
     face mesh's landmark ``i``, so the project's landmark → feature point table
     (:func:`recon.landmarks.mapping.load_mapping`, fitted to photos: its rows' own error
     is 1-5 % of the IPD) applied to the vertices gives where the points belong (% of the
@@ -157,14 +161,12 @@ def mask_marking(path: Path) -> dict[str, float]:
     import trimesh
 
     from recon.landmarks.mapping import load_mapping
-    from recon.mark import mark
 
     v = np.asarray(trimesh.load(path, process=False, force="mesh", maintain_order=True).vertices, dtype=np.float64)
     reference = {fp: np.asarray(r.weights) @ v[list(r.landmarks)] for fp, r in load_mapping().items()
                  if max(r.landmarks) < len(v)}
     es0 = abs(reference["3.7"][0] + reference["3.11"][0] - reference["3.12"][0] - reference["3.8"][0]) / 2
-    result = mark(path)
-    found = {i: b.position(v) for i, b in result.fdp.bindings.items() if b.part == "skin"}
+    found = {i: b.position(v) for i, b in target.feature_points.items() if b.part == "skin"}
     errors = [100.0 * float(np.linalg.norm(found[i] - reference[i])) / es0 for i in reference if i in found]
     return {"marking_error_vs_facemesh_median_pct": float(np.median(errors)),
             "marking_error_vs_facemesh_p90_pct": float(np.percentile(errors, 90)),
@@ -211,25 +213,24 @@ def main(argv=None) -> int:
     streams = [] if args.no_streams or not XFACE.is_dir() else sorted(XFACE.glob("*.fap"))
     tmp = Path(tempfile.mkdtemp(prefix="foreign_heads_"))
     heads: dict[str, Path] = {}
+    references = {}
     makehuman = None
     if (MAKEHUMAN_DIR / "base.obj").exists():
         makehuman = tmp / "makehuman.glb"
         raw = makehuman_head(targets=MAKEHUMAN_TARGETS)
         save_head(raw, makehuman)
         heads["makehuman"] = makehuman
-        for k, v in makehuman_marking(raw, makehuman).items():
-            print(f"makehuman.{k}: {fmt_value(v)}", flush=True)
+        references["makehuman"] = lambda target: makehuman_marking(target, raw)
     if MASK.exists():
         heads["mediapipe_mask"] = MASK
-        for k, v in mask_marking(MASK).items():
-            print(f"mediapipe_mask.{k}: {fmt_value(v)}", flush=True)
+        references["mediapipe_mask"] = lambda target: mask_marking(target, MASK)
     for p in args.meshes:
         heads[p.stem] = p
     if not heads:
         print(f"no heads: {FOREIGN} is absent and no mesh was given", file=sys.stderr)
         return 2
     for name, path in heads.items():
-        for k, v in measure(name, path, streams).items():
+        for k, v in measure(name, path, streams, references.get(name)).items():
             print(f"{name}.{k}: {fmt_value(v)}", flush=True)
     if makehuman is not None:
         from recon.mark import mark_file
