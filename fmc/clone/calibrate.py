@@ -86,10 +86,11 @@ def calibrate_tables(head: Head, fat: FAT | None = None, limits: tuple[float, fl
         along = binding.position(d) @ axis
         # A lip FAP played alone brings its other contour's partner with it at the same
         # value (mpeg4.io.fap.fill_lip_contours): the point moves by both tables.
-        other = dense.get(partner.get(n))
         lent = np.zeros(len(along))
-        if other is not None and np.array_equal(other[1].borders, mesh.borders) and other[3].part == binding.part:
-            lent = binding.position(other[2]) @ axis
+        if partner.get(n) in dense:
+            _, other_mesh, other_d, other_binding = dense[partner[n]]
+            if np.array_equal(other_mesh.borders, mesh.borders) and other_binding.part == binding.part:
+                lent = binding.position(other_d) @ axis
         factor = np.ones(len(along))
         for i, (a, b) in enumerate(zip(along, lent)):
             if a == 0.0:  # this interval moves nothing (a unidirectional FAP's other side)
