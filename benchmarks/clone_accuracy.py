@@ -186,7 +186,8 @@ def main(argv=None) -> int:
     if not NPZ.exists():
         print(f"skipped: {NPZ} is absent (the ICT FaceKit test data)")
         return 0
-    from fmc.author import author_from_shapes, author_high_level
+    from fmc.author import author_from_shapes
+    from fmc.high_level import author_high_level
     from fmc.clone import clone, correspond
     from mpeg4.fat import fat_to_morph_targets
     from mpeg4.generic_head import load_generic_head

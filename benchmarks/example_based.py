@@ -84,7 +84,7 @@ def key_model_weights(a, b):
 
 
 def shape_weights(a, b, shapes):
-    from fmc.author import HIGH_LEVEL_SHAPES
+    from fmc.high_level import HIGH_LEVEL_SHAPES
 
     mix = np.zeros((20, len(shapes)))
     for i, key in enumerate([(1, k) for k in range(1, 15)] + [(2, k) for k in range(1, 7)]):

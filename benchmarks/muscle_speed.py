@@ -77,7 +77,8 @@ def main(argv=None) -> int:
     ap.add_argument("--frames", type=int, default=200)
     args = ap.parse_args(argv)
 
-    from fmc.author import author_from_shapes, author_high_level
+    from fmc.author import author_from_shapes
+    from fmc.high_level import author_high_level
     from fmc.muscles import MuscleRig, author_from_muscles, author_high_level_from_muscles
     from fmc.play import Player
     from mpeg4.generic_head import load_generic_head

@@ -58,7 +58,8 @@ def measure(player, frames) -> float:
 
 
 def main() -> int:
-    from fmc.author import author_from_shapes, author_high_level
+    from fmc.author import author_from_shapes
+    from fmc.high_level import author_high_level
     from fmc.play import Player
     from mpeg4.generic_head import load_generic_head
 

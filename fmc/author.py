@@ -8,7 +8,8 @@ Bidirectional FAPs get one combination per direction (interval borders
 ``[-value, 0, value]``), unidirectional ones one (``[0, value]``). Rotations are
 FaceDefTransforms: the head about 7.1 and the eyeballs about their centres. The brow
 raisers 31-36, one point each where the shapes raise a whole brow, cut the sculpted raise
-into pieces by a smooth partition across the brows (:func:`brow_partition`).
+into pieces by a smooth partition across the brows (:mod:`fmc.brow_raise`). The visemes
+and expressions are :mod:`fmc.high_level`'s.
 
 Where no combination of shapes does the job (the ears, the nose wings, the tongue when
 the shapes never move it), the FAP falls back to a smooth local displacement field around
@@ -30,23 +31,22 @@ from scipy.optimize import nnls
 
 from mpeg4.catalogue import FAPS, FEATURE_POINTS, FP_IDS
 from mpeg4.errors import InputError
-from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, FaceDefTransform, fap_unit
+from mpeg4.fat import FAT, FaceDefTable, FaceDefTransform, fap_unit
 from mpeg4.head import Head, SparseDisplacement
 
 from .bound import bound_tables
-from .brow_crease import relaxed_brows
+from .brow_raise import _BROW_RAISE, BROW_POINTS, BROW_RAISE_SHAPES, _brow_piece
 from .chin import CHIN_FAPS
 from .lip_contours import MOUTH_LINE_FPS, lip_side, mouth_line, share_lips, smooth_partition
+from .mesh_tables import combine_shapes, fp_motion, mesh_table
 from .puff import PUFF_FAPS, puff_field
 from .push import PUSH_FAPS, along_axis
 from .separate import separate_tables
 from .unfold import unfold_tables
 
 __all__ = ["JAW_PARTS", "JAW_FAPS", "moving_parts", "REGIONS", "ADJACENT", "region_of", "unrelated",
-           "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit",
-           "BROW_POINTS", "BROW_RAISE_SHAPES", "brow_partition", "smooth_partition",
-           "author_from_shapes", "unfold_report",
-           "HIGH_LEVEL_SHAPES", "author_high_level"]
+           "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit", "smooth_partition",
+           "author_from_shapes", "unfold_report"]
 
 #: FP group → face region. Regions follow the muscles that move them together: the soft
 #: cheeks (5.1/5.2) move with the mouth, the forehead's hairline with the brows (see
@@ -74,13 +74,6 @@ def region_of(fp_id: str) -> str:
 
 # The jaw FAPs use the sculpted jaw shapes alone (the chin follows an arc, not the axis).
 _JAW_SHAPES = {3: ("jawOpen",), 14: ("jawForward",), 15: ("jawLeft", "jawRight")}
-
-#: The brow points across the face, right to left (outer, middle, inner on each side), and
-# the FAP raising each.
-BROW_POINTS = ("4.6", "4.4", "4.2", "4.1", "4.3", "4.5")
-_BROW_RAISE = {31: "4.1", 32: "4.2", 33: "4.3", 34: "4.4", 35: "4.5", 36: "4.6"}
-#: The sculpted shapes that together raise both brows whole.
-BROW_RAISE_SHAPES = ("browInnerUp_L", "browInnerUp_R", "browOuterUp_L", "browOuterUp_R")
 
 # Lip points: which lip each lies on (the other lip must not follow it).
 _UPPER_LIP = {"2.2", "2.6", "2.7", "8.1", "8.5", "8.6", "8.9", "8.10"}
@@ -157,22 +150,6 @@ def _fp_matrix(head: Head, names: list[str], ids: list[str], parts=None) -> np.n
     return a
 
 
-def _combine(head: Head, names: list[str], w: np.ndarray, parts=None) -> dict[str, SparseDisplacement]:
-    """Part → displacement of the weighted sum of shapes, over ``parts`` (all if None)."""
-    out: dict[str, np.ndarray] = {}
-    for name, wi in zip(names, w):
-        if wi <= 0:
-            continue
-        for part, d in head.morph_targets[name].items():
-            if parts is not None and part not in parts:
-                continue
-            dense = out.setdefault(part, np.zeros((head.parts[part].n_vertices, 3)))
-            dense[d.indices] += wi * d.vectors
-    # Motions under 10 µm at the authoring value are below anything a renderer shows and
-    # would only bloat the tables (a combination of shapes touches most of the face).
-    return {p: SparseDisplacement.from_dense(v, tol=1e-5) for p, v in out.items()}
-
-
 def _peak(head: Head, name: str, parts) -> float:
     """Largest vertex motion of shape ``name`` over ``parts`` (all parts if None), metres."""
     return max((float(np.abs(d.vectors).max(initial=0.0)) for p, d in head.morph_targets[name].items()
@@ -195,17 +172,6 @@ def _falloff(head: Head, fp_id: str, motion: np.ndarray) -> dict[str, SparseDisp
     w_fp = float(np.asarray(b.weights) @ w[list(b.vertices)])
     dense = np.outer(w / max(w_fp, 1e-12), motion)
     return {b.part: SparseDisplacement.from_dense(dense, tol=1e-9)}
-
-
-def _fp_motion(head: Head, disp: dict[str, SparseDisplacement], ids: list[str]) -> np.ndarray:
-    """(K, 3) motion of the FPs ``ids`` under a displacement."""
-    dense = {p: d.dense(head.parts[p].n_vertices) for p, d in disp.items()}
-    out = np.zeros((len(ids), 3))
-    for k, i in enumerate(ids):
-        b = head.feature_points[i]
-        if b.part in dense:
-            out[k] = np.asarray(b.weights) @ dense[b.part][list(b.vertices)]
-    return out
 
 
 #: Regions whose muscles pull on each other (a smile lifts the cheekbones, a raised brow
@@ -302,7 +268,7 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
         # lip corners (fmc.chin): the point's own smooth hat, both ways.
         if n in PUFF_FAPS or n in CHIN_FAPS:
             disp = puff_field(head, fp_id, value * unit * axis)
-            fat.add(_mesh_table(head, n, {s: {p: d.scaled(s) for p, d in disp.items()} for s in signs}, value, unit))
+            fat.add(mesh_table(head, n, {s: {p: d.scaled(s) for p, d in disp.items()} for s in signs}, value, unit))
             report.append(FapFit(n, "puff" if n in PUFF_FAPS else "hat"))
             continue
         k = ids.index(fp_id)
@@ -334,7 +300,7 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
                     disp = along_axis(disp, axis)
             if fit_err > tol or leak > leak_tol:
                 disp = _falloff(head, fp_id, goal)
-                motion = _fp_motion(head, disp, ids)
+                motion = fp_motion(head, disp, ids)
                 fit_err = float(np.linalg.norm(motion[k] - goal) / np.linalg.norm(goal))
                 leak = float(np.linalg.norm(motion[bad], axis=1).max(initial=0) / np.linalg.norm(goal))
                 route = "falloff"
@@ -342,7 +308,7 @@ def author_from_shapes(head: Head, value: float = 512.0, tol: float = 0.10, leak
                 weights = {names[j]: float(x) for j, x in enumerate(w) if x > 1e-6}
             meshes_by_sign[sign] = disp
             err_all, leak_all = max(err_all, fit_err), max(leak_all, leak)
-        fat.add(_mesh_table(head, n, meshes_by_sign, value, unit))
+        fat.add(mesh_table(head, n, meshes_by_sign, value, unit))
         report.append(FapFit(n, route, err_all, leak_all, weights))
     # Each of the sculpted shapes moves the whole lip: the lip FAPs share it (fmc.lip_contours);
     # and much more than its own point: each table leaves the others' points (fmc.separate).
@@ -361,83 +327,6 @@ def unfold_report(head: Head, fat: FAT, report: list[FapFit]) -> FAT:
     for fit in report:
         fit.folds = left.get(fit.fap, 0)
     return fat
-
-
-def brow_partition(head: Head, x: np.ndarray) -> np.ndarray:
-    """(N, 6) smooth partition of unity across the brows, one column per :data:`BROW_POINTS`.
-
-    Column j is 1 at the x of brow point j, 0 at the x of its neighbours, and blends
-    between neighbours by the quintic smoothstep ``6t⁵ − 15t⁴ + 10t³`` (C², so the pieces
-    are as smooth as the field they cut); beyond the outer points the outer columns stay 1.
-    The columns sum to 1 everywhere, so equal FAP values give back the whole field.
-
-    Parameters
-    ----------
-    head : Head
-        With the brow points.
-    x : (N,) float
-        Left-right coordinates, metres (the face's left is +x).
-    """
-    nodes = np.array([head.fp_position(i)[0] for i in BROW_POINTS])
-    if np.any(np.diff(nodes) <= 0):
-        raise InputError("the brow points are not ordered across the face (4.6, 4.4, 4.2, 4.1, 4.3, 4.5 from "
-                         f"right to left); their x are {', '.join(f'{v * 1e3:.1f}' for v in nodes)} mm",
-                         fix="check the brow points (fmc mark)")
-    return smooth_partition(nodes, x)
-
-
-def _brow_piece(head, n, goal, ids, k, bad):
-    """A brow-raise FAP from the sculpted whole-brow raise, cut by :func:`brow_partition`.
-
-    The sculpted shapes raise each brow whole (inner, outer), while FAPs 31-36 move one of
-    three points per brow. A combination of whole shapes cannot move one point alone
-    without large opposed weights (raise against lower), and a local bump scaled to the
-    FAP's amount folds the forehead where two of them overlap. Here the summed raise of
-    :data:`BROW_RAISE_SHAPES` is cut into six pieces by a smooth partition of unity across
-    the brows, so each FAP moves its own point and fades to nothing at its neighbours, and
-    all six together give back the sculpted raise. The FAP is a vertical displacement
-    (reference section 3): each piece keeps the field's vertical component, scaled so its
-    point moves by ``goal``. (The sculpted brow also slides back and out over the skull, up
-    to a third of its rise at the outer point, and its forehead wrinkles lie mostly in
-    depth; both are left out: the point must move straight up, and wrinkles driven to the
-    FAP's full range, three times their sculpted depth, fold the skin.) The lowering
-    direction is the same field reversed (the sculpted frown also pulls the brow inwards,
-    which is FAPs 37/38, and barely lowers the outer brow), but not the same table: each
-    direction's whole field is relaxed where it folds the skin before it is cut
-    (:func:`fmc.brow_crease.relaxed_brows`; run backwards, the raise pushed the skin above
-    the lid crease through it).
-
-    Returns the displacement, its FP error and leak (as :func:`_solve`) and the scale of
-    the shapes where the piece is whole.
-    """
-    fp_id = _BROW_RAISE[n]
-    part = head.feature_points[fp_id].part
-    nv = head.parts[part].n_vertices
-    field = np.zeros((nv, 3))
-    for name in BROW_RAISE_SHAPES:
-        d = head.morph_targets[name].get(part)
-        if d is not None:
-            field[d.indices] += d.vectors
-    cuts = brow_partition(head, head.parts[part].vertices[:, 0])
-    piece = np.zeros((nv, 3))
-    # Each way the whole brows' motion is relaxed where it folds, then cut (fmc.brow_crease).
-    whole = relaxed_brows(head, part, field[:, 1], cuts, BROW_POINTS, np.sign(goal[1]), fap_unit(n, head.fapu))
-    piece[:, 1] = cuts[:, BROW_POINTS.index(fp_id)] * whole
-    unit = {part: SparseDisplacement.from_dense(piece)}
-    along = float(_fp_motion(head, unit, [fp_id])[0] @ goal) / float(goal @ goal)
-    if abs(along) <= 1e-9:
-        return {}, np.inf, np.inf, 0.0
-    scale = 1.0 / along
-    # Motions under 10 µm at the authoring value are dropped, as in :func:`_combine`.
-    disp = {part: SparseDisplacement.from_dense(piece * scale, tol=1e-5)}
-    motion = _fp_motion(head, disp, ids)
-    g = np.linalg.norm(goal)
-    err = float(np.linalg.norm(motion[k] - goal) / g)
-    leak = float(np.linalg.norm(motion[bad], axis=1).max(initial=0) / g)
-    # The shapes' weight where the piece is whole: the sculpted piece's point rises by `raw`.
-    piece[:, 1] = cuts[:, BROW_POINTS.index(fp_id)] * field[:, 1]
-    raw = float(_fp_motion(head, {part: SparseDisplacement.from_dense(piece)}, [fp_id])[0, 1])
-    return disp, err, leak, abs(goal[1] / raw)
 
 
 def _solve(head, names, a, ids, k, bad, goal, parts=None):
@@ -460,25 +349,7 @@ def _solve(head, names, a, ids, k, bad, goal, parts=None):
     motion = (a @ w).reshape(-1, 3)
     err = float(np.linalg.norm(motion[k] - goal) / g)
     leak = float(np.linalg.norm(motion[bad], axis=1).max(initial=0) / g)
-    return _combine(head, names, w, parts), err, leak, w
-
-
-def _mesh_table(head, n, by_sign, value, unit, high_level: int = 0) -> FaceDefTable:
-    """A FaceDefTable from the displacement at +value (and −value)."""
-    signs = sorted(by_sign)
-    borders = [-value, 0.0, value] if len(signs) == 2 else [0.0, value]
-    parts = sorted({p for d in by_sign.values() for p in d})
-    table = FaceDefTable(n, high_level)
-    for part in parts:
-        idx = np.unique(np.concatenate([by_sign[s][part].indices for s in signs if part in by_sign[s]]))
-        disp = np.zeros((len(idx), len(signs), 3))
-        for j, s in enumerate(signs):
-            d = by_sign[s].get(part)
-            if d is not None:
-                # Slope per FAP unit: the displacement reached at s * value, over s * value units.
-                disp[np.searchsorted(idx, d.indices), j] = d.vectors / (s * value * unit)
-        table.meshes.append(FaceDefMesh(part, borders, idx, disp))
-    return table
+    return combine_shapes(head, names, w, parts), err, leak, w
 
 
 def _rotation_table(head: Head, n: int) -> FaceDefTable:
@@ -504,7 +375,7 @@ def _special(head: Head, n: int, value: float):
             motion = np.array([0.0, half_width * value * unit, 0.0])
             for part, d in _falloff(head, fp_id, motion).items():
                 lift[part] = lift[part] + d if part in lift else d
-        return _mesh_table(head, n, {1.0: lift}, value, unit), FapFit(n, "falloff")
+        return mesh_table(head, n, {1.0: lift}, value, unit), FapFit(n, "falloff")
     # Pupil dilation: the sculpted dilation shape, scaled so that at ``value`` the pupil's
     # diameter grows by value x IRISD (its rim moves by half that); negative values
     # constrict it along the same shape.
@@ -522,64 +393,4 @@ def _special(head: Head, n: int, value: float):
     # The eyeball alone: the sculpted dilation also nudges the skin and gums (noise).
     disp = {part: d.scaled(w)}
     neg = {p: dd.scaled(-1.0) for p, dd in disp.items()}
-    return _mesh_table(head, n, {1.0: disp, -1.0: neg}, value, unit), FapFit(n, "shapes", weights={shape: w})
-
-
-def _load_high_level() -> dict:
-    import tomllib
-    from importlib import resources
-
-    data = tomllib.loads(resources.files("fmc").joinpath("data/high_level_shapes.toml").read_text())
-    out = {}
-    for kind, fap in (("visemes", 1), ("expressions", 2)):
-        for key, weights in data[kind].items():
-            expanded = {}
-            for name, w in weights.items():
-                if name.endswith("_LR"):
-                    expanded[name[:-3] + "_L"] = w
-                    expanded[name[:-3] + "_R"] = w
-                else:
-                    expanded[name] = w
-            out[(fap, int(key))] = expanded
-    return out
-
-
-#: (1, viseme) / (2, expression) → shape name → weight at full intensity (63), from
-#: ``fmc/data/high_level_shapes.toml``.
-HIGH_LEVEL_SHAPES = _load_high_level()
-
-
-def _high_level_displacement(head: Head, weights: dict) -> dict[str, SparseDisplacement]:
-    """The weighted shapes of a viseme or expression, the skin from every shape and the
-    jaw's parts (:data:`JAW_PARTS`) from the jaw shapes only; eyeballs and the upper teeth
-    never move (their motion in other shapes is sculpting noise)."""
-    jaw_shapes = {s for shapes in _JAW_SHAPES.values() for s in shapes}
-    skin = {p for p in head.parts if p not in JAW_PARTS and not p.startswith(("eye_", "teeth_", "gums_"))
-            and p != "tongue"}
-    out: dict[str, SparseDisplacement] = {}
-    for group, parts in ((sorted(weights), skin), (sorted(set(weights) & jaw_shapes), set(JAW_PARTS))):
-        if not group:
-            continue
-        for part, d in _combine(head, group, np.array([weights[n] for n in group]), parts).items():
-            out[part] = out[part] + d if part in out else d
-    return out
-
-
-def author_high_level(head: Head) -> FAT:
-    """FaceDefTables for the 15 visemes and 7 expressions (neutral included) from the
-    head's sculpted shapes by :data:`HIGH_LEVEL_SHAPES`; intensity 63 gives the full pose."""
-    from mpeg4.fat import HIGH_LEVEL_UNIT
-
-    fat = FAT()
-    for (fap, k), weights in HIGH_LEVEL_SHAPES.items():
-        missing = [n for n in weights if n not in head.morph_targets]
-        if missing:
-            raise InputError(f"{'viseme' if fap == 1 else 'expression'} {k} needs the shapes {', '.join(missing)}, "
-                             "which the head lacks", fix="author it from a head with ARKit-named shapes, or clone it")
-        names = list(weights)
-        disp = _high_level_displacement(head, weights) if names else {}
-        if disp:
-            fat.add(_mesh_table(head, fap, {1.0: disp}, 63.0, HIGH_LEVEL_UNIT, high_level=k))
-        else:
-            fat.add(FaceDefTable(fap, k))
-    return fat
+    return mesh_table(head, n, {1.0: disp, -1.0: neg}, value, unit), FapFit(n, "shapes", weights={shape: w})

@@ -2,7 +2,7 @@
 
 The brow FAPs 31-36 move their points vertically (the reference, section 3); their tables
 are pieces of the sculpted whole-brow raise, cut by a smooth partition across the brows
-(:func:`fmc.author.brow_partition`), so that all six together give the whole raise back.
+(:func:`fmc.brow_raise.brow_partition`), so that all six together give the whole raise back.
 That raise lifts the brow and fades out across the upper lid's crease, steeply: on the
 generic head, at the x of the lid fold 3.13, the skin 3 mm above the crease rises 4 times
 as much as the crease (10.1 against 2.6 mm with ``raise_l_m_eyebrow`` at 300). Raised, that
@@ -71,7 +71,7 @@ def relaxed_brows(head: Head, part: str, field: np.ndarray, cuts: np.ndarray, po
     field : (N,) float
         The sculpted vertical raise over the part's vertices (any scale).
     cuts : (N, P) float
-        The brow partition (:func:`fmc.author.brow_partition`), one column per point.
+        The brow partition (:func:`fmc.brow_raise.brow_partition`), one column per point.
     points : sequence of str
         The P brow points, in the columns' order.
     sign : {1.0, -1.0}

@@ -47,7 +47,8 @@ def author(head: Path = typer.Argument(..., help="Head with feature points (.glb
 
     h = load_head(head)
     if method == "shapes":
-        from fmc.author import author_from_shapes, author_high_level
+        from fmc.author import author_from_shapes
+        from fmc.high_level import author_high_level
 
         fat, report = author_from_shapes(h, value=value)
         fat.update(author_high_level(h))

@@ -78,5 +78,5 @@ def puff_field(head: Head, fp_id: str, goal: np.ndarray) -> dict[str, SparseDisp
     reach = max(REACH, REACH_PER_MOTION * float(np.linalg.norm(goal)))
     hat = correction_basis(head, points, reach)[:, points.index(fp_id)]
     # The hat is 1 at the point's own vertices, so the point moves by ``goal`` exactly; motions
-    # under 10 µm at the table's value are dropped, as in fmc.author._combine.
+    # under 10 µm at the table's value are dropped, as in fmc.mesh_tables.combine_shapes.
     return {"skin": SparseDisplacement.from_dense(np.outer(hat, goal), tol=1e-5)}

@@ -13,7 +13,7 @@ turned 54 skin triangles over there (121 at 600); in Greta's disgust (340) and X
 fear (282) it gave all the worst frame's 78 and 69.
 
 :func:`along_axis` keeps of such a field its motion along the FAP's axis only, as the
-brow raisers keep their vertical motion (:func:`fmc.author.brow_partition`) and the cheek
+brow raisers keep their vertical motion (:func:`fmc.brow_raise.brow_partition`) and the cheek
 puffs theirs (:mod:`fmc.puff`): the region moves with its point the way the point moves.
 The point's own motion is unchanged (the fit makes it exact along the axis); its vertical
 motion, which the lips' vertical FAPs govern, the separation took out already.

@@ -52,7 +52,7 @@ REACHES = (0.001, 0.002, 0.004, 0.008, 0.016)
 #: lip by 609).
 EXTENT = 1024.0
 #: FAPs left as authored by default. The brow raisers 31-36 are pieces of one sculpted raise
-#: (:func:`fmc.author.brow_partition`) that add up to it; relaxed one by one they no longer
+#: (:func:`fmc.brow_raise.brow_partition`) that add up to it; relaxed one by one they no longer
 #: do: all six at 200 creased the forehead by 12 to 19 degrees of fold growth, not 7 (their
 #: whole motion is relaxed each way before it is cut into pieces, :mod:`fmc.brow_crease`). The
 #: lip corners' stretches 6, 7, 53 and 54 move one corner point 25 mm at 512 while the

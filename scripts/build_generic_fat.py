@@ -1,7 +1,7 @@
 """Author the generic head's complete Facial Animation Tables and store them beside it.
 
 The 66 low-level FAPs (from the sculpted shapes, ``fmc.author.author_from_shapes``), the
-15 visemes and 7 expressions (``fmc.author.author_high_level``) go to
+15 visemes and 7 expressions (``fmc.high_level.author_high_level``) go to
 ``data/generic_head/generic_head_fat.npz`` (int16-quantised, see ``mpeg4.io.fat_npz``);
 ``mpeg4.generic_head.load_generic_head(with_fat=True)`` attaches them.
 
@@ -18,7 +18,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from fmc.author import author_from_shapes, author_high_level  # noqa: E402
+from fmc.author import author_from_shapes  # noqa: E402
+from fmc.high_level import author_high_level  # noqa: E402
 from mpeg4.generic_head import GENERIC_HEAD_DIR, load_generic_head  # noqa: E402
 from mpeg4.io.fat_npz import quantisation_error, write_fat_npz  # noqa: E402
 

@@ -17,7 +17,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from fmc.author import author_high_level  # noqa: E402
+from fmc.high_level import author_high_level  # noqa: E402
 from fmc.muscles import MuscleRig, author_from_muscles, author_high_level_from_muscles  # noqa: E402
 from mpeg4 import EXPRESSIONS, VISEMES, apply_fat  # noqa: E402
 from mpeg4.generic_head import load_generic_head  # noqa: E402

@@ -216,7 +216,7 @@ def key_models_from_shapes(head: Head, visemes: Iterable[int] = range(1, 15),
         Named ``viseme_<name>`` and ``expression_<name>`` (:data:`VERBAL`,
         :data:`EMOTIONAL`), the visemes first.
     """
-    from fmc.author import HIGH_LEVEL_SHAPES
+    from fmc.high_level import HIGH_LEVEL_SHAPES
 
     wanted = [((1, k), f"viseme_{VISEMES[k].name}") for k in visemes]
     wanted += [((2, k), f"expression_{EXPRESSIONS[k].name}") for k in expressions]

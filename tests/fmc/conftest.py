@@ -5,7 +5,8 @@ import pytest
 
 @pytest.fixture(scope="session")
 def authored_head():
-    from fmc.author import author_from_shapes, author_high_level
+    from fmc.author import author_from_shapes
+    from fmc.high_level import author_high_level
     from mpeg4.generic_head import load_generic_head
 
     head = load_generic_head()

@@ -99,7 +99,7 @@ def test_authored_head_round_trips_through_a_valid_glb(authored, tmp_path, valid
 
 @pytest.fixture(scope="module")
 def high_level():
-    from fmc.author import author_high_level
+    from fmc.high_level import author_high_level
 
     head = load_generic_head()
     head.fat = author_high_level(head)
@@ -191,7 +191,7 @@ def test_brow_raises_together_do_not_crease_the_forehead(authored):
     # edge squeezed to 27 % of its length) when each was a bump of its own: where two
     # overlapped they moved the skin twice. Measured against the vertical part of the
     # sculpted brow raise moving the inner brow as far (9 degrees, 59 %).
-    from fmc.author import BROW_RAISE_SHAPES
+    from fmc.brow_raise import BROW_RAISE_SHAPES
 
     head, report = authored
     assert all(report[n].route == "shapes" and report[n].error < 0.01 for n in range(31, 37))
@@ -221,7 +221,7 @@ def test_brow_raises_together_do_not_crease_the_forehead(authored):
 
 
 def test_brow_partition_is_smooth_and_sums_to_one():
-    from fmc.author import BROW_POINTS, brow_partition
+    from fmc.brow_raise import BROW_POINTS, brow_partition
 
     head = load_generic_head()
     x = np.linspace(-0.09, 0.09, 1801)

@@ -5,7 +5,8 @@ six pieces still add up."""
 import numpy as np
 import pytest
 
-from fmc.author import BROW_POINTS, author_from_shapes
+from fmc.author import author_from_shapes
+from fmc.brow_raise import BROW_POINTS
 from fmc.conformance import SurfaceChecks
 from mpeg4 import apply_fat
 from mpeg4.fat import fap_unit

@@ -5,8 +5,8 @@ import shutil
 import numpy as np
 import pytest
 
-from fmc.author import author_high_level
 from fmc.coarticulation import speech_stream, viseme_weights
+from fmc.high_level import author_high_level
 from fmc.play import Player
 from fmc.speech import synthesize, viseme_of
 from mpeg4 import InputError
