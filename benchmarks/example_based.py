@@ -137,8 +137,9 @@ def save_picture(keys, importance, path, names=("expression_joy+viseme_A", "expr
     """The skin coloured by verbal importance, then the composites ``names``, in a row."""
     import cv2
 
+    from mpeg4.camera import Camera
     from mpeg4.io.atomic import atomic_write
-    from mpeg4.render import Camera, RenderMesh, render
+    from mpeg4.render import RenderMesh, render
 
     skin = keys.head.skin
     imp = importance[:skin.n_vertices, None]

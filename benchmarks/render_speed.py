@@ -36,7 +36,8 @@ def _wavy_sheet(n_side: int):
 
 def main() -> int:
     t0 = time.perf_counter()
-    from mpeg4.render import Camera, RenderMesh, _gl, render
+    from mpeg4.camera import Camera
+    from mpeg4.render import RenderMesh, _gl, render
 
     t1 = time.perf_counter()
     gl = _gl()

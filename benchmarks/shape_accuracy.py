@@ -225,7 +225,8 @@ def write_heatmap(head, err_mm, path):
     """Front and side renders of the skin coloured by per-vertex error (0 blue … 5 mm red)."""
     import cv2
 
-    from mpeg4.render import Camera, RenderMesh, render
+    from mpeg4.camera import Camera
+    from mpeg4.render import RenderMesh, render
 
     skin = head.skin
     t = np.clip(err_mm / 5.0, 0, 1)

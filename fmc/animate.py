@@ -113,8 +113,9 @@ def stream_animation(head: Head, stream, limits: bool = True) -> tuple[GlbAnimat
 def render_preview_frames(head: Head, stream, size: int = 400, max_fps: float = 15.0, yaw_deg: float = 15.0,
                           limits: bool = True):
     """Offscreen renders of a stream: (frames list of (H, W, 3) uint8, frame duration s)."""
+    from mpeg4.camera import Camera
     from mpeg4.preview import head_meshes
-    from mpeg4.render import Camera, render
+    from mpeg4.render import render
 
     from .play import Player
 

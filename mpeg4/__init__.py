@@ -2,7 +2,7 @@
 
 The catalogue (feature points, FAPU, FAPs, visemes, expressions), the :class:`Head`
 model, Facial Animation Tables, file I/O (:mod:`mpeg4.io`) and offscreen rendering
-(:mod:`mpeg4.render`).
+(:mod:`mpeg4.render`, its camera :mod:`mpeg4.camera`).
 """
 
 from .catalogue import (

@@ -14,10 +14,11 @@ from collections.abc import Mapping, Sequence
 import cv2
 import numpy as np
 
+from .camera import Camera
 from .catalogue import FEATURE_POINTS
 from .head import Head
 from .io.atomic import atomic_write
-from .render import Camera, RenderMesh, render
+from .render import RenderMesh, render
 
 __all__ = ["VIEWS", "GROUP_COLOURS", "head_meshes", "render_views", "preview_image", "save_preview"]
 

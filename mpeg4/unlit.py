@@ -16,8 +16,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .camera import Camera
 from .errors import InputError
-from .render import Camera, RenderMesh, _gl, _mesh_arrays, _read_depth
+from .render import RenderMesh, _gl, _mesh_arrays, _read_depth
 
 __all__ = ["render_depth", "render_unlit"]
 

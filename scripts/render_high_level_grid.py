@@ -20,10 +20,11 @@ sys.path.insert(0, str(ROOT))
 from fmc.high_level import author_high_level  # noqa: E402
 from fmc.muscles import MuscleRig, author_from_muscles, author_high_level_from_muscles  # noqa: E402
 from mpeg4 import EXPRESSIONS, VISEMES, apply_fat  # noqa: E402
+from mpeg4.camera import Camera  # noqa: E402
 from mpeg4.generic_head import load_generic_head  # noqa: E402
 from mpeg4.io.atomic import atomic_write  # noqa: E402
 from mpeg4.preview import head_meshes  # noqa: E402
-from mpeg4.render import Camera, render  # noqa: E402
+from mpeg4.render import render  # noqa: E402
 
 
 def _high_level(method: str):

@@ -60,15 +60,16 @@ def opening_figures(head: Head, value: float = 600.0, yaw_deg: float = 0.0, pitc
         (:func:`recon.texture.mouth.open_pose`).
     value : float
     yaw_deg, pitch_deg : float
-        The view (:meth:`mpeg4.render.Camera.fit`).
+        The view (:meth:`mpeg4.camera.Camera.fit`).
     size : (width, height)
     focal_px : float
         The camera is framed on the lips.
     """
     import cv2
 
+    from mpeg4.camera import Camera
     from mpeg4.preview import head_meshes
-    from mpeg4.render import Camera, RenderMesh, render
+    from mpeg4.render import RenderMesh, render
     from mpeg4.unlit import render_unlit
     from recon.texture.mouth import open_pose
 

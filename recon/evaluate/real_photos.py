@@ -24,9 +24,10 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from mpeg4.camera import Camera
 from mpeg4.head import Head
 from mpeg4.preview import head_meshes
-from mpeg4.render import Camera, render
+from mpeg4.render import render
 
 __all__ = ["ipd_px", "rendered_mask", "point_misses", "point_agreement", "head_region", "silhouette_iou", "profile_line",
            "skin_delta_e", "relit", "BROW_IDS"]

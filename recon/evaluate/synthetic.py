@@ -21,10 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
+from mpeg4.camera import Camera, look_rotation
 from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.head import Head
 from mpeg4.io.fdp_json import FdpFile, ViewAnnotation
-from mpeg4.render import Camera, RenderMesh, look_rotation, render
+from mpeg4.render import RenderMesh, render
 
 from .ict import default_ict_path, identity_head, identity_vertices, load_ict
 from .dressing import Look, background_image, dress, fitzpatrick_rgb, hair_top, hard_look

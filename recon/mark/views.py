@@ -78,8 +78,9 @@ def render_views(head: Head, folder, size: int = 1024, frame: np.ndarray | None 
     """
     from PIL import Image
 
+    from mpeg4.camera import Camera
     from mpeg4.preview import head_meshes
-    from mpeg4.render import Camera, render
+    from mpeg4.render import render
 
     folder = Path(folder)
     meshes = head_meshes(head)

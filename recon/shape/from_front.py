@@ -310,7 +310,7 @@ def _under_hair(front: Mapping, ids: list[str], pos: dict, camera, generic: Head
 
 def _scaled_camera(fitted, k: float):
     """The camera that sees the head scaled by ``k`` about the origin as ``fitted`` saw it."""
-    from mpeg4.render import Camera
+    from mpeg4.camera import Camera
     from recon.texture.cameras import FittedCamera
 
     c = fitted.camera

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mpeg4.camera import Camera
 from mpeg4.head import Head
-from mpeg4.render import Camera
 
 __all__ = ["PROFILE_SPACING_MM", "MAX_PROFILE_SHIFT_IPD", "PROFILE_PASSES", "ProfileControls", "profile_controls",
            "follow_profile", "match_profile"]

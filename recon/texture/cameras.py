@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from mpeg4.camera import Camera
 from mpeg4.errors import InputError
-from mpeg4.render import Camera
 
 __all__ = ["FittedCamera", "fit_camera", "fit_view_camera", "check_view_cameras"]
 

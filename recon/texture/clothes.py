@@ -18,8 +18,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from mpeg4.camera import Camera
 from mpeg4.head import Head
-from mpeg4.render import Camera, vertex_normals
+from mpeg4.render import vertex_normals
 
 from .delight import fit_mask
 
@@ -364,7 +365,7 @@ def remove_clothes(head: Head, photo: np.ndarray, head_mask: np.ndarray, camera:
         RGB, as taken (the texture fills the clothes before it fits the photo's light).
     head_mask : (H, W) bool
         Where the photo shows the head.
-    camera : mpeg4.render.Camera
+    camera : mpeg4.camera.Camera
         The photo's camera.
     seen : (N,) bool
         The head's skin vertices the camera sees.

@@ -50,9 +50,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from mpeg4.camera import Camera
 from mpeg4.errors import InputError
 from mpeg4.head import Head
-from mpeg4.render import Camera, RenderMesh, vertex_normals
+from mpeg4.render import RenderMesh, vertex_normals
 from mpeg4.unlit import render_unlit
 
 __all__ = ["Lighting", "MIN_SHADING", "MIN_MEAN_SHADING", "MAX_BURNT", "sh_basis", "normal_image", "decode_normals",

@@ -30,8 +30,8 @@ import cv2
 import numpy as np
 from skimage.morphology import skeletonize
 
+from mpeg4.camera import Camera
 from mpeg4.head import Head
-from mpeg4.render import Camera
 
 from .clothes import face_skin_model, skin_pixels
 
@@ -161,7 +161,7 @@ def find_glasses(head: Head, photo: np.ndarray, camera: Camera, seen: np.ndarray
         3.11, 3.12) and the brows (4.1–4.6).
     photo : (H, W, 3) uint8
         RGB.
-    camera : mpeg4.render.Camera
+    camera : mpeg4.camera.Camera
         The photo's camera.
     seen : (N,) bool
         The skin vertices the camera sees.

@@ -38,9 +38,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from mpeg4.camera import Camera
 from mpeg4.errors import InputError
 from mpeg4.head import Head
-from mpeg4.render import Camera, RenderMesh, vertex_normals
+from mpeg4.render import RenderMesh, vertex_normals
 from mpeg4.unlit import render_depth
 
 __all__ = ["MOUTH_PARTS", "OPEN_JAW", "BARED", "BOUNCE", "RAMP", "sky_directions", "open_pose", "bared_pose",

@@ -22,11 +22,11 @@ import cv2
 import numpy as np
 from scipy.spatial import ConvexHull
 
+from mpeg4.camera import Camera
 from mpeg4.catalogue import FEATURE_POINTS
 from mpeg4.unlit import render_depth
 from mpeg4.errors import InputError
 from mpeg4.head import Head
-from mpeg4.render import Camera
 
 from .cameras import FittedCamera
 from .warp import FEATURE_LINE, convex_outline, sections

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from mpeg4.render import Camera
+from mpeg4.camera import Camera
 
 from .cameras import FittedCamera
 

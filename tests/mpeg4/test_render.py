@@ -4,12 +4,11 @@ predictably, returns depth consistent with Camera.depth, and keeps working witho
 import numpy as np
 import pytest
 
+from mpeg4.camera import Camera, look_rotation
 from mpeg4.errors import InputError
 from mpeg4.render import (
-    Camera,
     RendererUnavailable,
     RenderMesh,
-    look_rotation,
     render,
     vertex_normals,
 )

@@ -4,9 +4,10 @@ meshes, to the bit, whatever the camera."""
 import numpy as np
 import pytest
 
+from mpeg4.camera import Camera
 from mpeg4.unlit import render_depth, render_unlit
 from mpeg4.errors import InputError
-from mpeg4.render import Camera, RenderMesh, render
+from mpeg4.render import RenderMesh, render
 
 
 def _sphere_and_plane():

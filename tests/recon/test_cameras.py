@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from mpeg4 import InputError
-from mpeg4.render import Camera, look_rotation
+from mpeg4.camera import Camera, look_rotation
 from recon.texture.cameras import fit_camera
 
 

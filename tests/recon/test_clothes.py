@@ -204,8 +204,9 @@ def test_the_face_skin_model_grows_from_the_cheeks_past_fair_hair():
     """Fair hair over a third of the face (a fringe, the temples) is near enough to skin
     to widen one Gaussian over both; grown from the cheeks, the model keeps the skin and
     leaves the hair out."""
+    from mpeg4.camera import Camera
     from mpeg4.generic_head import load_generic_head
-    from mpeg4.render import Camera, RenderMesh
+    from mpeg4.render import RenderMesh
     from mpeg4.unlit import render_depth
     from recon.texture.clothes import _lab, cheek_vertices, face_skin_model
     from recon.texture.regions import _visible

@@ -87,7 +87,7 @@ def test_front_only_shape_beats_the_generic_head_on_identities_outside_the_model
 def test_focal_length_is_chosen_among_candidates_and_reported(generic):
     """A close pinhole photo of the generic head: the fit prefers a close camera to an
     orthographic one, and says the focal length was estimated."""
-    from mpeg4.render import Camera
+    from mpeg4.camera import Camera
 
     from recon.photos import FILM_DIAGONAL_MM
 
@@ -107,8 +107,8 @@ def test_focal_length_is_chosen_on_the_points_kept_not_on_stray_ones(generic):
     """A distant (135 mm) photo whose ear and hairline points went astray by 0.4 IPD: the
     cameras are compared again once the strays are left out, so the choice is the face's
     (with the strays in, a 50 mm camera explained them best and won)."""
+    from mpeg4.camera import Camera
     from mpeg4.catalogue import FEATURE_POINTS
-    from mpeg4.render import Camera
 
     from recon.photos import FILM_DIAGONAL_MM
 
