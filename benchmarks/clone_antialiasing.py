@@ -252,7 +252,7 @@ def main(argv=None) -> int:
     print(f"target: {case.m} of {case.n} skin vertices, {len(case.names)} shapes")
     d = discs(case)
     from fmc.clone import alignment_space
-    from fmc.clone.cloning import _median_edge
+    from fmc.clone.align import _median_edge
 
     edges = [_median_edge(alignment_space(h, h.skin.vertices), h.skin.triangles) for h in (case.source, case.sparse)]
     print(f"spacing_target_median: {d['spacing']:.4f} (alignment space; median edge over the face: source "

@@ -56,16 +56,16 @@ References
 .. [1] I. S. Pandžić, "Facial motion cloning", Graphical Models 65(6) (2003) 385-404.
 """
 
-from .align import (FPTriangulation, bilaplacian, delaunay_fp_triangulation, folded_triangles, load_fp_triangulation,
-                    midway, outer_radius, surface_warp, triangulation_for, vertex_positions, warp)
+from .align import (FPTriangulation, align_heads, bilaplacian, delaunay_fp_triangulation, folded_triangles,
+                    load_fp_triangulation, midway, outer_radius, surface_warp, triangulation_for, vertex_positions, warp)
 from .calibrate import LIMITS, calibrate_tables
-from .cloning import (REQUIRED_FPS, Correspondence, align_heads, check_head, clone, clone_targets,
-                      correspond, lip_sides, pin_feature_points, skin_weights)
+from .cloning import REQUIRED_FPS, Correspondence, check_head, clone, clone_targets, correspond
 from .contours import CONTOURS, contour_pairs, contour_path, edge_graph
 from .followers import FOLLOW_ES0, follower_weights, surface_followers
 from .interpolate import TriangleIndex, disc_samples, gradient_operator, interpolation_matrix
 from .parts import PART_ROLES, PartRef, find_parts, rigid_motion, sphere_centre
-from .regions import LIP_FPS, lip_classes, lip_sides_on_mesh, normalisation, region_scales
+from .regions import LIP_FPS, lip_classes, lip_sides, lip_sides_on_mesh, normalisation, region_scales
+from .skin import pin_feature_points, skin_weights
 from .space import MOUTH_SPAN, alignment_space, cylinder_axis
 
 __all__ = [

@@ -11,6 +11,9 @@ the same space: the two correspondences are one. A frame of fixed points around 
 closes the triangulation, beyond which nothing moves. A Delaunay triangulation of the
 source's points is the alternative.
 
+:func:`align_heads` does this for two heads' skins, holding as well the eyelid margins, the
+lips' inner contours and the mouth's corners (:mod:`fmc.clone.contours`).
+
 References
 ----------
 .. [1] I. S. Pandžić, "Facial motion cloning", Graphical Models 65(6) (2003) 385-404.
@@ -29,14 +32,21 @@ from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import spsolve
 from scipy.spatial import Delaunay
 
+from mpeg4.errors import InputError
 from mpeg4.head import Head
 from mpeg4.surface import bilaplacian
 
+from .contours import contour_pairs
 from .interpolate import TriangleIndex
 from .space import alignment_space
 
 __all__ = ["FPTriangulation", "load_fp_triangulation", "delaunay_fp_triangulation", "triangulation_for",
-           "vertex_positions", "folded_triangles", "warp", "midway", "surface_warp", "bilaplacian", "outer_radius"]
+           "vertex_positions", "folded_triangles", "warp", "midway", "surface_warp", "bilaplacian", "outer_radius",
+           "align_heads"]
+
+# Meshes whose median edges (in the alignment space, over the face) differ by more than
+# this factor are of unlike density (the contours are then left out of the alignment).
+_SPARSER = 1.5
 
 
 @dataclass(frozen=True)
@@ -282,3 +292,90 @@ def outer_radius(space: np.ndarray, triangles: np.ndarray, points: np.ndarray) -
     out = np.full(len(points), -np.inf)
     np.maximum.at(out, point[over], radius)
     return np.where(np.isfinite(out), out, np.nan)
+
+
+def _median_edge(space: np.ndarray, triangles: np.ndarray) -> float:
+    """Median edge length over the face (angle within ±1, between chin and hairline)."""
+    e = np.r_[triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]
+    a, b = space[e[:, 0], :2], space[e[:, 1], :2]
+    mid = 0.5 * (a + b)
+    face = (np.abs(mid[:, 0]) < 1.0) & (mid[:, 1] > 0) & (mid[:, 1] < 1.4)
+    return float(np.median(np.linalg.norm(a - b, axis=1)[face])) if face.any() else np.nan
+
+
+def align_heads(source: Head, target: Head, tri, source_space: np.ndarray, target_space: np.ndarray,
+                alignment: str = "surface", contours: bool = True) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Both skins in one alignment space: each head's feature points moved half-way to
+    the other's, the rest carried along.
+
+    Half-way, so that cloning from A to B and from B to A match the two meshes in the
+    same space and the two correspondences are the same one.
+
+    Parameters
+    ----------
+    source, target : Head
+    tri : FPTriangulation
+    source_space, target_space : (N_s, 3), (N_t, 3) float
+        The skins in their own alignment spaces.
+    alignment : {"surface", "affine"}
+        ``"surface"``: between the feature points, a bi-harmonic interpolation along
+        each mesh (:func:`fmc.clone.align.surface_warp`); ``"affine"``: the piecewise-
+        affine map over the triangulation (:func:`fmc.clone.align.warp`). On ICT FaceKit
+        identities the surface map is the closer to their ground truth (round trip
+        2.6 % against 2.9 %, source → target 6.6 % against 7.4 %).
+    contours : bool
+        With the surface map, also hold the eyelid margins, the lips' inner contours and
+        the mouth's corners, sampled by arc length between their feature points on both
+        heads (:func:`fmc.clone.contours.contour_pairs`), when the two meshes are of like
+        density (median edges within :data:`_SPARSER` of each other); a contour missing
+        on either head is left out. On ICT FaceKit identities: round trip 2.46 % to
+        2.29 %, source → target 6.22 % to 6.07 %.
+
+    Returns
+    -------
+    source_points, target_points : (N_s, 3), (N_t, 3) float64
+        Angle, height and radius in the common space; the radius scaled by the ratio of
+        the heads' radii at the feature points, interpolated as its logarithm.
+    warnings : list of str
+        Triangles turned over on either head.
+    """
+    notes = []
+    s_pos, t_pos = vertex_positions(source, tri), vertex_positions(target, tri)
+    for who, pos in (("source", s_pos), ("target", t_pos)):
+        folded = folded_triangles(tri, pos)
+        if folded:
+            notes.append(f"on the {who} the feature-point triangles {'; '.join(' '.join(f) for f in folded[:4])} "
+                         "are turned over: check those points' places")
+    if alignment not in ("surface", "affine"):
+        raise InputError(f"unknown alignment {alignment!r}", fix="use 'surface' or 'affine'")
+    mid = midway(s_pos, t_pos)
+    out = []
+    # The contours only between meshes of like density: on a much coarser mesh the path
+    # between two feature points strays from the fold by up to an edge, and holding its
+    # vertices on the finer mesh's contour pulls them that far (ICT FaceKit identities
+    # re-meshed to a third: 7.39 % to 7.85 % against the ground truth).
+    ratio = _median_edge(target_space, target.skin.triangles) / _median_edge(source_space, source.skin.triangles)
+    pairs = (None, None)
+    if contours and alignment == "surface" and 1 / _SPARSER <= ratio <= _SPARSER:
+        pairs = contour_pairs(source, target, source_space, target_space)
+    for head, other, pos, space, held in ((source, target, s_pos, source_space, pairs[0]),
+                                          (target, source, t_pos, target_space, pairs[1])):
+        if alignment == "surface":
+            moved = surface_warp(head, space, tri, pos, mid, held)
+        else:
+            fp_rows = ~tri.frame
+            log_ratio = np.zeros(len(tri.names))
+            log_ratio[fp_rows] = np.log(mid[fp_rows, 2] / pos[fp_rows, 2])
+            log_ratio[tri.frame] = np.median(log_ratio[fp_rows])
+            xy, log_rho = warp(space[:, :2], tri, pos, mid, values=log_ratio)
+            moved = np.c_[xy, space[:, 2] * np.exp(log_rho[:, 0])]
+        # Under the outer surface (the mouth's inside under the lips, the sockets under
+        # the lids) the depth below it follows the head's size (half-way: the square root
+        # of the two eye separations' ratio), not the radii's ratio, which would press a
+        # deep layer towards the axis with the face.
+        outer = outer_radius(space, head.skin.triangles, space[:, :2])
+        outer = np.where(np.isfinite(outer), np.maximum(outer, space[:, 2]), space[:, 2])
+        size = np.sqrt(other.fapu.ES0 / head.fapu.ES0)
+        moved[:, 2] = outer * (moved[:, 2] / space[:, 2]) - (outer - space[:, 2]) * size
+        out.append(moved)
+    return out[0], out[1], notes

@@ -23,18 +23,15 @@ from mpeg4.errors import InputError
 from mpeg4.head import Head, SparseDisplacement
 
 from ..unfold import unfold_tables
-from .align import folded_triangles, midway, outer_radius, surface_warp, triangulation_for, vertex_positions, warp
+from .align import align_heads, triangulation_for
 from .calibrate import LIMITS, calibrate_tables
-from .contours import contour_pairs
 from .followers import JAW_ROLES, jaw_anchors, jaw_riders, surface_followers
-from .interpolate import gradient_operator, interpolation_matrix
-from .parts import PART_ROLES, PartRef, feature_point_pins, find_parts, part_correspondence, transfer_part_motion
-from .regions import (LIP_FPS, face_scale, lip_classes, lip_sides_on_mesh, lip_vertex_classes, normalisation,
-                      region_scales)
+from .parts import PART_ROLES, PartRef, find_parts, part_correspondence, transfer_part_motion
+from .regions import face_scale, lip_sides, normalisation, region_scales
+from .skin import pin_feature_points, skin_weights
 from .space import SPACE_FPS, alignment_space
 
-__all__ = ["REQUIRED_FPS", "check_head", "Correspondence", "correspond", "align_heads",
-           "lip_sides", "skin_weights", "pin_feature_points", "clone_targets", "clone"]
+__all__ = ["REQUIRED_FPS", "check_head", "Correspondence", "correspond", "clone_targets", "clone"]
 
 #: Feature points the method cannot do without: the FAPU and the alignment space.
 REQUIRED_FPS = tuple(sorted({p for d in FAPU_DEFINITIONS.values() for p in (d.first, d.second)} | set(SPACE_FPS),
@@ -44,18 +41,6 @@ REQUIRED_FPS = tuple(sorted({p for d in FAPU_DEFINITIONS.values() for p in (d.fi
 # Eye separation (ES0) of a head in metres lies well inside this range; outside it the
 # head is in other units.
 _ES0_RANGE = (0.03, 0.15)
-
-# Source triangles spanning more angle than this cross the back of the head (where the
-# angle wraps) or surround the axis at the crown: in the plane they would cover the face.
-_MAX_TRIANGLE_ANGLE = np.pi
-
-# How far along the mesh (in MW0) a lip's feature points claim vertices for their lip.
-_LIP_REACH = 0.5
-
-# Meshes whose median edges (in the alignment space, over the face) differ by more than
-# this factor are of unlike density (the contours are then left out of the alignment).
-_SPARSER = 1.5
-
 
 
 def check_head(head: Head, name: str) -> None:
@@ -74,15 +59,6 @@ def check_head(head: Head, name: str) -> None:
         factor = {"centimetres": "0.01", "millimetres": "0.001"}.get(unit, "the right factor")
         raise InputError(f"the {name} head's pupils are {es:.4g} units apart, not 0.03-0.15 m{guess}",
                          fix=f"give the head in metres (scale it by {factor})")
-
-
-def _median_edge(space: np.ndarray, triangles: np.ndarray) -> float:
-    """Median edge length over the face (angle within ±1, between chin and hairline)."""
-    e = np.r_[triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]
-    a, b = space[e[:, 0], :2], space[e[:, 1], :2]
-    mid = 0.5 * (a + b)
-    face = (np.abs(mid[:, 0]) < 1.0) & (mid[:, 1] > 0) & (mid[:, 1] < 1.4)
-    return float(np.median(np.linalg.norm(a - b, axis=1)[face])) if face.any() else np.nan
 
 
 @dataclass
@@ -253,152 +229,6 @@ def _in_skin(head: Head, parts: Mapping[str, PartRef]) -> np.ndarray:
         if p.part == "skin":
             out[p.vertices] = True
     return out
-
-
-def lip_sides(source: Head, target: Head, source_space: np.ndarray, target_space: np.ndarray
-              ) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """(N_s,) and (N_t,) lip classes of the two skins (+1 upper, −1 lower, 0 neither), each
-    by its own feature points, and a warning when they cannot be told apart.
-
-    The lips' zone is the polygon of their feature points (:func:`lip_classes`); inside
-    it a vertex is on the lip whose feature points are nearer along the mesh
-    (:func:`lip_sides_on_mesh`; the lower lip's inner surface curls up behind the upper
-    lip, above the line where they meet), else on its side of that line.
-    """
-    if not all(i in source.feature_points and i in target.feature_points for i in LIP_FPS):
-        missing = [i for i in LIP_FPS if i not in source.feature_points or i not in target.feature_points]
-        return (np.zeros(len(source_space)), np.zeros(len(target_space)),
-                [f"the lips are not told apart: {', '.join(missing)} are missing"])
-    sides = []
-    for head, space in ((source, source_space), (target, target_space)):
-        fps = dict(zip(LIP_FPS, alignment_space(head, np.array([head.fp_position(i) for i in LIP_FPS]))))
-        zone = lip_classes(space, fps)
-        along = lip_sides_on_mesh(head, _LIP_REACH * head.fapu.MW0)
-        sides.append(lip_vertex_classes(head, np.where(zone != 0, np.where(along != 0, along, zone), 0.0)))
-    return sides[0], sides[1], []
-
-
-def pin_feature_points(weights: sparse.csr_matrix, source: Head, target: Head) -> sparse.csr_matrix:
-    """``weights`` with the target skin's feature points taking the source's exactly (the
-    points are known to correspond; those between the triangulation's vertices, such as
-    the inner lips and the chin boss, would otherwise miss by a little). See
-    :func:`fmc.clone.parts.feature_point_pins`."""
-    out = sparse.lil_matrix(weights)
-    for v, cols in feature_point_pins(source, target, "skin", "skin").items():
-        out.rows[v] = sorted(cols)
-        out.data[v] = [cols[c] for c in sorted(cols)]
-    return out.tocsr()
-
-
-def skin_weights(source: Head, source_space: np.ndarray, aligned: np.ndarray, depth: np.ndarray,
-                 source_lip: np.ndarray, target_lip: np.ndarray, source_parts: np.ndarray, target_parts: np.ndarray,
-                 support: float | np.ndarray) -> sparse.csr_matrix:
-    """(N_t, N_s) weights taking the source skin's values to the target skin's vertices.
-
-    ``source_space`` (N_s, 3) and ``aligned`` (N_t, 2), ``depth`` (N_t,) place the two
-    skins in one alignment space (:func:`align_heads`); ``support`` is the anti-aliasing
-    radius, one for all or (N_t,). Each lip's target vertices take nothing from the other
-    lip's source vertices; skin vertices that belong to parts (``*_parts`` masks) neither
-    give nor take. The interpolation carries each corner's value half-way along its
-    gradient (:func:`fmc.clone.interpolate.gradient_operator`; the lips' gradients each
-    from their own lip).
-    """
-    tris = source.skin.triangles
-    ang = source_space[tris, 0]
-    keep = (ang.max(axis=1) - ang.min(axis=1) < _MAX_TRIANGLE_ANGLE) & ~source_parts[tris].any(axis=1)
-    height = 0.5 * (source.fp_position("4.1")[1] + source.fp_position("4.2")[1]) - source.fp_position("2.1")[1]
-    n_t = len(aligned)
-    support = np.broadcast_to(np.asarray(support, dtype=np.float64), (n_t,))
-    grads = gradient_operator(source_space, tris[keep], height, apart=source_lip)
-    out = sparse.csr_matrix((n_t, len(source_space)))
-    for side, other in ((0.0, None), (1.0, -1.0), (-1.0, 1.0)):
-        mine = np.flatnonzero((target_lip == side) & ~target_parts)
-        if not len(mine):
-            continue
-        w = interpolation_matrix(aligned[mine], depth[mine], source_space, tris[keep], len(source_space), height,
-                                 forbidden=None if other is None else source_lip == other, support=support[mine],
-                                 gradients=grads)
-        rows = sparse.csr_matrix((np.ones(len(mine)), (mine, np.arange(len(mine)))), shape=(n_t, len(mine)))
-        out = out + rows @ w
-    return out.tocsr()
-
-
-def align_heads(source: Head, target: Head, tri, source_space: np.ndarray, target_space: np.ndarray,
-                alignment: str = "surface", contours: bool = True) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Both skins in one alignment space: each head's feature points moved half-way to
-    the other's, the rest carried along.
-
-    Half-way, so that cloning from A to B and from B to A match the two meshes in the
-    same space and the two correspondences are the same one.
-
-    Parameters
-    ----------
-    source, target : Head
-    tri : FPTriangulation
-    source_space, target_space : (N_s, 3), (N_t, 3) float
-        The skins in their own alignment spaces.
-    alignment : {"surface", "affine"}
-        ``"surface"``: between the feature points, a bi-harmonic interpolation along
-        each mesh (:func:`fmc.clone.align.surface_warp`); ``"affine"``: the piecewise-
-        affine map over the triangulation (:func:`fmc.clone.align.warp`). On ICT FaceKit
-        identities the surface map is the closer to their ground truth (round trip
-        2.6 % against 2.9 %, source → target 6.6 % against 7.4 %).
-    contours : bool
-        With the surface map, also hold the eyelid margins, the lips' inner contours and
-        the mouth's corners, sampled by arc length between their feature points on both
-        heads (:func:`fmc.clone.contours.contour_pairs`), when the two meshes are of like
-        density (median edges within :data:`_SPARSER` of each other); a contour missing
-        on either head is left out. On ICT FaceKit identities: round trip 2.46 % to
-        2.29 %, source → target 6.22 % to 6.07 %.
-
-    Returns
-    -------
-    source_points, target_points : (N_s, 3), (N_t, 3) float64
-        Angle, height and radius in the common space; the radius scaled by the ratio of
-        the heads' radii at the feature points, interpolated as its logarithm.
-    warnings : list of str
-        Triangles turned over on either head.
-    """
-    notes = []
-    s_pos, t_pos = vertex_positions(source, tri), vertex_positions(target, tri)
-    for who, pos in (("source", s_pos), ("target", t_pos)):
-        folded = folded_triangles(tri, pos)
-        if folded:
-            notes.append(f"on the {who} the feature-point triangles {'; '.join(' '.join(f) for f in folded[:4])} "
-                         "are turned over: check those points' places")
-    if alignment not in ("surface", "affine"):
-        raise InputError(f"unknown alignment {alignment!r}", fix="use 'surface' or 'affine'")
-    mid = midway(s_pos, t_pos)
-    out = []
-    # The contours only between meshes of like density: on a much coarser mesh the path
-    # between two feature points strays from the fold by up to an edge, and holding its
-    # vertices on the finer mesh's contour pulls them that far (ICT FaceKit identities
-    # re-meshed to a third: 7.39 % to 7.85 % against the ground truth).
-    ratio = _median_edge(target_space, target.skin.triangles) / _median_edge(source_space, source.skin.triangles)
-    pairs = (None, None)
-    if contours and alignment == "surface" and 1 / _SPARSER <= ratio <= _SPARSER:
-        pairs = contour_pairs(source, target, source_space, target_space)
-    for head, other, pos, space, held in ((source, target, s_pos, source_space, pairs[0]),
-                                          (target, source, t_pos, target_space, pairs[1])):
-        if alignment == "surface":
-            moved = surface_warp(head, space, tri, pos, mid, held)
-        else:
-            fp_rows = ~tri.frame
-            log_ratio = np.zeros(len(tri.names))
-            log_ratio[fp_rows] = np.log(mid[fp_rows, 2] / pos[fp_rows, 2])
-            log_ratio[tri.frame] = np.median(log_ratio[fp_rows])
-            xy, log_rho = warp(space[:, :2], tri, pos, mid, values=log_ratio)
-            moved = np.c_[xy, space[:, 2] * np.exp(log_rho[:, 0])]
-        # Under the outer surface (the mouth's inside under the lips, the sockets under
-        # the lids) the depth below it follows the head's size (half-way: the square root
-        # of the two eye separations' ratio), not the radii's ratio, which would press a
-        # deep layer towards the axis with the face.
-        outer = outer_radius(space, head.skin.triangles, space[:, :2])
-        outer = np.where(np.isfinite(outer), np.maximum(outer, space[:, 2]), space[:, 2])
-        size = np.sqrt(other.fapu.ES0 / head.fapu.ES0)
-        moved[:, 2] = outer * (moved[:, 2] / space[:, 2]) - (outer - space[:, 2]) * size
-        out.append(moved)
-    return out[0], out[1], notes
 
 
 def clone_targets(source: Head, target: Head, names: Iterable[str] | None = None, antialias: float | None = 0.0,

@@ -26,8 +26,11 @@ from mpeg4.head import Head
 
 from mpeg4.surface import edge_graph, nearest_seed_labels
 
+from .space import alignment_space
+
 __all__ = ["MOUTH_REGION_FPS", "region_scales", "normalisation", "mouth_scale", "face_scale", "LIP_FPS",
-           "UPPER_LIP_FPS", "LOWER_LIP_FPS", "CORNER_FPS", "lip_sides_on_mesh", "lip_classes", "lip_vertex_classes"]
+           "UPPER_LIP_FPS", "LOWER_LIP_FPS", "CORNER_FPS", "lip_sides_on_mesh", "lip_classes", "lip_vertex_classes",
+           "lip_sides"]
 
 #: Skin feature points of the mouth region (lips, chin and jaw, the soft cheeks, the
 #: bottom of the nose); all other skin points belong to the upper face.
@@ -86,6 +89,9 @@ LIP_FPS = ("8.3", "8.5", "8.10", "8.1", "8.9", "8.6", "8.4", "8.8", "8.2", "8.7"
 # How far beyond the outer contour (as a fraction of its size about its centre) a point
 # still belongs to a lip: the vermilion border and the lips' inner surfaces.
 _LIP_MARGIN = 0.25
+
+# How far along the mesh (in MW0) a lip's feature points claim vertices for their lip.
+_LIP_REACH = 0.5
 
 
 #: Lip feature points by the lip they lie on: their vertices are on that lip whatever
@@ -147,3 +153,26 @@ def lip_classes(space: np.ndarray, lip_fps: dict[str, np.ndarray]) -> np.ndarray
     inside = points_in_poly(space, poly)
     line_y = np.interp(space[:, 0], line[:, 0], line[:, 1])
     return np.where(inside, np.where(space[:, 1] >= line_y, 1.0, -1.0), 0.0)
+
+
+def lip_sides(source: Head, target: Head, source_space: np.ndarray, target_space: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """(N_s,) and (N_t,) lip classes of the two skins (+1 upper, −1 lower, 0 neither), each
+    by its own feature points, and a warning when they cannot be told apart.
+
+    The lips' zone is the polygon of their feature points (:func:`lip_classes`); inside
+    it a vertex is on the lip whose feature points are nearer along the mesh
+    (:func:`lip_sides_on_mesh`; the lower lip's inner surface curls up behind the upper
+    lip, above the line where they meet), else on its side of that line.
+    """
+    if not all(i in source.feature_points and i in target.feature_points for i in LIP_FPS):
+        missing = [i for i in LIP_FPS if i not in source.feature_points or i not in target.feature_points]
+        return (np.zeros(len(source_space)), np.zeros(len(target_space)),
+                [f"the lips are not told apart: {', '.join(missing)} are missing"])
+    sides = []
+    for head, space in ((source, source_space), (target, target_space)):
+        fps = dict(zip(LIP_FPS, alignment_space(head, np.array([head.fp_position(i) for i in LIP_FPS]))))
+        zone = lip_classes(space, fps)
+        along = lip_sides_on_mesh(head, _LIP_REACH * head.fapu.MW0)
+        sides.append(lip_vertex_classes(head, np.where(zone != 0, np.where(along != 0, along, zone), 0.0)))
+    return sides[0], sides[1], []

@@ -1,0 +1,67 @@
+"""The skin's weights: each target skin vertex as a blend of the source skin's vertices.
+
+Step 4 of the method (:mod:`fmc.clone`): the interpolation (:mod:`fmc.clone.interpolate`)
+applied lip by lip, so that each lip takes nothing from the other (:func:`skin_weights`),
+and the target's feature points pinned to the source's (:func:`pin_feature_points`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import sparse
+
+from mpeg4.head import Head
+
+from .interpolate import gradient_operator, interpolation_matrix
+from .parts import feature_point_pins
+
+__all__ = ["skin_weights", "pin_feature_points"]
+
+# Source triangles spanning more angle than this cross the back of the head (where the
+# angle wraps) or surround the axis at the crown: in the plane they would cover the face.
+_MAX_TRIANGLE_ANGLE = np.pi
+
+
+def pin_feature_points(weights: sparse.csr_matrix, source: Head, target: Head) -> sparse.csr_matrix:
+    """``weights`` with the target skin's feature points taking the source's exactly (the
+    points are known to correspond; those between the triangulation's vertices, such as
+    the inner lips and the chin boss, would otherwise miss by a little). See
+    :func:`fmc.clone.parts.feature_point_pins`."""
+    out = sparse.lil_matrix(weights)
+    for v, cols in feature_point_pins(source, target, "skin", "skin").items():
+        out.rows[v] = sorted(cols)
+        out.data[v] = [cols[c] for c in sorted(cols)]
+    return out.tocsr()
+
+
+def skin_weights(source: Head, source_space: np.ndarray, aligned: np.ndarray, depth: np.ndarray,
+                 source_lip: np.ndarray, target_lip: np.ndarray, source_parts: np.ndarray, target_parts: np.ndarray,
+                 support: float | np.ndarray) -> sparse.csr_matrix:
+    """(N_t, N_s) weights taking the source skin's values to the target skin's vertices.
+
+    ``source_space`` (N_s, 3) and ``aligned`` (N_t, 2), ``depth`` (N_t,) place the two
+    skins in one alignment space (:func:`align_heads`); ``support`` is the anti-aliasing
+    radius, one for all or (N_t,). Each lip's target vertices take nothing from the other
+    lip's source vertices; skin vertices that belong to parts (``*_parts`` masks) neither
+    give nor take. The interpolation carries each corner's value half-way along its
+    gradient (:func:`fmc.clone.interpolate.gradient_operator`; the lips' gradients each
+    from their own lip).
+    """
+    tris = source.skin.triangles
+    ang = source_space[tris, 0]
+    keep = (ang.max(axis=1) - ang.min(axis=1) < _MAX_TRIANGLE_ANGLE) & ~source_parts[tris].any(axis=1)
+    height = 0.5 * (source.fp_position("4.1")[1] + source.fp_position("4.2")[1]) - source.fp_position("2.1")[1]
+    n_t = len(aligned)
+    support = np.broadcast_to(np.asarray(support, dtype=np.float64), (n_t,))
+    grads = gradient_operator(source_space, tris[keep], height, apart=source_lip)
+    out = sparse.csr_matrix((n_t, len(source_space)))
+    for side, other in ((0.0, None), (1.0, -1.0), (-1.0, 1.0)):
+        mine = np.flatnonzero((target_lip == side) & ~target_parts)
+        if not len(mine):
+            continue
+        w = interpolation_matrix(aligned[mine], depth[mine], source_space, tris[keep], len(source_space), height,
+                                 forbidden=None if other is None else source_lip == other, support=support[mine],
+                                 gradients=grads)
+        rows = sparse.csr_matrix((np.ones(len(mine)), (mine, np.arange(len(mine)))), shape=(n_t, len(mine)))
+        out = out + rows @ w
+    return out.tocsr()
