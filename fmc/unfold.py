@@ -17,7 +17,8 @@ low-level skin table of a FAT at each interval border and, beyond the outer ones
 value :data:`EXTENT` that streams reach.
 
 Some folds cannot go while the feature points are held, and some tables are left as
-authored (:data:`KEPT`: the brow raisers, the lip corners' stretches). Measured on the
+authored (:data:`KEPT`: the brow raisers; the lip corners' stretches, unfolded as inner and
+outer pairs, :data:`CORNER_PAIRS`, as streams play them). Measured on the
 generic head (``tests/fmc/test_unfold.py``, ``benchmarks/fap_conformance.py``): the tables
 it relaxes, each alone at ±300, turned 1674 triangles over in all before, 323 after; the
 nine Xface and six Greta streams' worst frame 473 before, 78 after, the longest edge 19.3
@@ -43,7 +44,7 @@ from mpeg4.head import Head
 from mpeg4.seams import merged_surface
 from mpeg4.surface import bilaplacian, inverted_triangles
 
-__all__ = ["REACHES", "EXTENT", "KEPT", "unfold_offsets", "unfold_tables"]
+__all__ = ["REACHES", "EXTENT", "KEPT", "CORNER_PAIRS", "unfold_offsets", "unfold_tables"]
 
 #: Distance, metres, around the folds within which the motion is relaxed, at each try.
 REACHES = (0.001, 0.002, 0.004, 0.008, 0.016)
@@ -59,12 +60,22 @@ EXTENT = 1024.0
 #: other contour's, 3.3 mm away, stays: that fold cannot go, and relaxing around it left a
 #: steep slope between the two points that cloning carried onto other heads (MakeHuman's
 #: longest edge at ±512 went from 11.6 to 24.3 times its length). A stream sets both
-#: contours' stretch (the player fills the one it leaves out), which fold little together.
+#: contours' stretch (the player fills the one it leaves out): the pairs are unfolded
+#: together instead (:data:`CORNER_PAIRS`).
 KEPT = frozenset(range(31, 37)) | {6, 7, 53, 54}
+#: The inner and outer lip corners' stretches, each side: kept apart (:data:`KEPT`), they
+#: are unfolded together, as a stream plays them (:func:`unfold_tables`). Together at +300
+#: they turned 75 triangles over on the generic head, 4 now; at +100 10, now 0. Pulled in
+#: (negative), their folds (249 at -300) do not go without folding more elsewhere: kept.
+CORNER_PAIRS = ((6, 53), (7, 54))
+#: Shares of a border's value at which a pair's sum must turn nothing over, besides
+#: :data:`EXTENT` beyond the outer borders.
+PAIR_SHARES = (0.2, 0.5, 1.0)
 
 
 def unfold_offsets(vertices: np.ndarray, triangles: np.ndarray, offsets: np.ndarray, held: np.ndarray,
-                   scales=(1.0,), bilap: sparse.csr_matrix | None = None) -> tuple[np.ndarray, int]:
+                   scales=(1.0,), bilap: sparse.csr_matrix | None = None, no_worse: bool = False
+                   ) -> tuple[np.ndarray, int]:
     """``offsets`` with the motion around each fold replaced by a smooth one.
 
     Parameters
@@ -80,6 +91,10 @@ def unfold_offsets(vertices: np.ndarray, triangles: np.ndarray, offsets: np.ndar
         The motion must turn nothing over at each of these multiples of ``offsets``.
     bilap : (V, V) sparse, optional
         :func:`mpeg4.surface.bilaplacian` of the mesh, when the caller has it.
+    no_worse : bool
+        Take a try only when it turns no more triangles over at any scale than the best so
+        far (and fewer at some); by default a try is judged by its folds at the first
+        scale, then the next (a smaller motion weighs first).
 
     Returns
     -------
@@ -113,7 +128,8 @@ def unfold_offsets(vertices: np.ndarray, triangles: np.ndarray, offsets: np.ndar
             continue
         trial[free] = lu.solve(-np.asarray(q[free][:, fixed] @ trial[fixed]))
         corners, count = folds(trial)
-        if count < fewest:
+        better = (all(c <= f for c, f in zip(count, fewest)) and count != fewest) if no_worse else count < fewest
+        if better:
             best, fewest = trial, count
         if not any(fewest):
             break
@@ -179,4 +195,48 @@ def unfold_tables(head: Head, fat: FAT | None = None, *, keep=KEPT) -> tuple[FAT
                           if changed else mesh)
         if changed:
             out.add(FaceDefTable(table.fap, table.high_level, meshes, list(table.transforms)))
+    for pair in CORNER_PAIRS:
+        if all(n in keep and (n, 0) in given for n in pair):
+            q = bilaplacian(v, t) if q is None else q
+            bad = _unfold_pair(head, out, pair, first, inverse, v, t, held, q)
+            for n in pair:
+                if bad:
+                    left[n] = max(left.get(n, 0), bad)
     return out, left
+
+
+def _unfold_pair(head: Head, fat: FAT, pair: tuple[int, int], first, inverse, v, t, held, q) -> int:
+    """Unfold the inner and outer lip corner's stretches of ``pair`` together, in ``fat``
+    (replaced in place): their sum, as a stream plays them, relaxed at each border and at
+    :data:`EXTENT`, the change shared between the two tables by each vertex's share of
+    their motion. Returns the triangles the sum still turns over at its worst."""
+    tables = [fat[(n, 0)] for n in pair]
+    skins = [[m for m in tb.meshes if m.part == "skin"] for tb in tables]
+    if any(len(s) != 1 for s in skins) or not np.array_equal(skins[0][0].borders, skins[1][0].borders):
+        return 0
+    units = [fap_unit(n, head.fapu) for n in pair]
+    b = skins[0][0].borders
+    n_v = len(head.skin.vertices)
+    at = [m[0].border_offsets(u, n_v)[:, first] for m, u in zip(skins, units)]
+    worst, changed = 0, False
+    for k in range(len(b)):
+        if b[k] == 0:
+            continue
+        # Streams set the corners' stretches at a tenth to a third of the border: a try
+        # must fold no more there, nor at the border.
+        both = at[0][k] + at[1][k]
+        if not inverted_triangles(v, t, both, PAIR_SHARES).any():
+            continue
+        relaxed, bad = unfold_offsets(v, t, both, held, PAIR_SHARES, q, no_worse=True)
+        change = relaxed - both
+        size = [np.linalg.norm(a[k], axis=1) for a in at]
+        share = size[0] / np.maximum(size[0] + size[1], 1e-12)
+        at[0][k] += share[:, None] * change
+        at[1][k] += (1.0 - share)[:, None] * change
+        worst, changed = max(worst, bad), True
+    if changed:
+        for tb, m, a, u in zip(tables, skins, at, units):
+            meshes = [FaceDefMesh.from_border_offsets("skin", b, a[:, inverse], u, m[0].indices) if x.part == "skin"
+                      else x for x in tb.meshes]
+            fat.add(FaceDefTable(tb.fap, tb.high_level, meshes, list(tb.transforms)))
+    return worst
