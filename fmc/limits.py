@@ -12,6 +12,10 @@ played, and says what it changed:
   out of this estimate; lids not at all. Where each point goes is
   its own FAP's value (or, for a lip FAP the stream never set, where the jaw carries it)
   plus what the frame's visemes and expressions do to it.
+- **A lip's own contours** (:data:`LIP_PAIRS`): the outer contour of the upper lip stays
+  above its inner contour, and the lower lip's below, by :data:`LIP_KEEP` of its neutral
+  height at least, each giving way by half: Greta's anger raises the lower lip's outer
+  contour three times as far as its inner one, which turned the lip over at its corners.
 - **The midline** (:data:`MIDLINE_FAPS`): the brows' squeeze pulls each inner brow point
   (4.1, 4.2) towards the midline; it stops while the point keeps :data:`MIDLINE_KEEP` of
   its neutral distance from it (skin is left between the brows: a squeeze of 220 once moved
@@ -38,11 +42,20 @@ from mpeg4.head import Head
 from .author import JAW_FAPS
 from .decouple import effect_of, table_effect
 
-__all__ = ["MEETING_PAIRS", "MIDLINE_FAPS", "MIDLINE_KEEP", "TURN_LIMITS_DEG", "Limits"]
+__all__ = ["MEETING_PAIRS", "LIP_PAIRS", "LIP_KEEP", "MIDLINE_FAPS", "MIDLINE_KEEP", "TURN_LIMITS_DEG", "Limits"]
 
 #: (upper FAP, lower FAP) whose points must not pass each other: lids, then inner and
 #: outer lip contours (centre, left and right midpoints).
 MEETING_PAIRS = ((19, 21), (20, 22), (4, 5), (8, 10), (9, 11), (51, 52), (55, 57), (56, 58))
+
+#: (upper FAP, lower FAP) of the same lip's two contours (centre, left and right
+#: midpoints): the upper lip's outer contour above its inner one, the lower lip's inner
+#: contour above its outer one. A stream that raises the lower lip's outer contour by 609
+#: and its inner one by 182 (Greta's anger) would turn the lip inside out.
+LIP_PAIRS = ((51, 4), (55, 8), (56, 9), (5, 52), (10, 57), (11, 58))
+#: Share of its neutral height a lip keeps between its contours at the most (this project's
+#: choice: a lip is squeezed thinner, not through itself).
+LIP_KEEP = 0.25
 
 #: FAPs that move their point towards the face's midline when positive: the brows' squeeze.
 MIDLINE_FAPS = (37, 38)
@@ -66,11 +79,14 @@ class Limits:
     def __init__(self, head: Head):
         self.pairs = []
         points = []
-        for upper, lower in MEETING_PAIRS:
+        for upper, lower in LIP_PAIRS + MEETING_PAIRS:
             fu, fl = FAPS[upper].feature_points[0], FAPS[lower].feature_points[0]
             if fu in head.feature_points and fl in head.feature_points:
                 # Height of each point per unit value (the FAPs move along ±y).
-                press = 0.0 if FAPS[upper].unit == "IRISD" else 0.1 * head.fapu.MNS0
+                if (upper, lower) in LIP_PAIRS:  # a negative press: kept apart
+                    press = -LIP_KEEP * max(0.0, float(head.fp_position(fu)[1] - head.fp_position(fl)[1]))
+                else:
+                    press = 0.0 if FAPS[upper].unit == "IRISD" else 0.1 * head.fapu.MNS0
                 self.pairs.append((upper, lower, float(head.fp_position(fu)[1]), float(head.fp_position(fl)[1]),
                                    fap_unit(upper, head.fapu) * FAPS[upper].axis_vector[1],
                                    fap_unit(lower, head.fapu) * FAPS[lower].axis_vector[1], press))
@@ -110,17 +126,22 @@ class Limits:
             jaw = effect_of(self._jaw, out, self._n_points)
             high = {k: v for k, v in out.items() if isinstance(k, tuple)}
             high = effect_of(self._high, high, self._n_points) if high else np.zeros(self._n_points)
-            for p, (upper, lower, y_u, y_l, k_u, k_l, press) in enumerate(self.pairs):
-                if upper not in out and lower not in out:
-                    continue
-                own_u = float(out[upper]) * k_u if upper in out else jaw[2 * p]
-                own_l = float(out[lower]) * k_l if lower in out else jaw[2 * p + 1]
-                top, bottom = y_u + own_u + high[2 * p], y_l + own_l + high[2 * p + 1]
-                excess = bottom - top - press
-                if excess > 1e-9:
-                    out[upper] = (top + 0.5 * excess - y_u - high[2 * p]) / k_u
-                    out[lower] = (bottom - 0.5 * excess - y_l - high[2 * p + 1]) / k_l
-                    changed.append(f"{FAPS[upper].name}/{FAPS[lower].name} stopped where they meet")
+            # Twice: lips that meet may then squeeze a lip past its own keep, once.
+            for _ in range(2):
+                for p, (upper, lower, y_u, y_l, k_u, k_l, press) in enumerate(self.pairs):
+                    if upper not in out and lower not in out:
+                        continue
+                    own_u = float(out[upper]) * k_u if upper in out else jaw[2 * p]
+                    own_l = float(out[lower]) * k_l if lower in out else jaw[2 * p + 1]
+                    top, bottom = y_u + own_u + high[2 * p], y_l + own_l + high[2 * p + 1]
+                    excess = bottom - top - press
+                    if excess > 1e-9:
+                        out[upper] = (top + 0.5 * excess - y_u - high[2 * p]) / k_u
+                        out[lower] = (bottom - 0.5 * excess - y_l - high[2 * p + 1]) / k_l
+                        what = "kept a lip's height" if press < 0 else "stopped where they meet"
+                        phrase = f"{FAPS[upper].name}/{FAPS[lower].name} {what}"
+                        if phrase not in changed:
+                            changed.append(phrase)
         for n, most in self.midline.items():
             v = out.get(n)
             if v and v > most:

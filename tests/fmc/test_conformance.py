@@ -149,6 +149,28 @@ def test_lids_and_lips_stop_where_they_meet(shipped):
     assert gap < -(0.1 * shipped.fapu.MNS0 + 3e-3)
 
 
+def test_a_lip_keeps_its_height_between_its_contours(shipped):
+    """Greta's anger raises the lower lip's outer contour by 609 and its inner one by 182:
+    the outer contour would pass over the inner one (the lip turned inside out, folded at
+    the corners). The limits keep a quarter of the lip's neutral height between them (as
+    their own FAPs move them: the neighbours' tables take a little of it), and say so; a
+    lowering that keeps the lip's shape is played as given."""
+    from fmc.limits import LIP_KEEP, Limits
+
+    frame = {10: 182.0, 57: 609.0, 11: 182.0, 58: 609.0}
+    h0 = shipped.fp_position("2.8")[1] - shipped.fp_position("8.7")[1]
+    limited = Player(shipped)
+    parts = limited.part_vertices(limited.vertices(frame))
+    for inner, outer in (("2.8", "8.7"), ("2.9", "8.8")):
+        h = shipped.fp_position(inner, parts)[1] - shipped.fp_position(outer, parts)[1]
+        assert h > 0.6 * LIP_KEEP * h0, (inner, h, h0)  # the neighbours' tables left out (0.86 when written)
+    assert sum("kept a lip's height" in k for k in limited.decode.clamped) == 2
+    free = Player(shipped, limits=False)
+    parts = free.part_vertices(free.vertices(frame))
+    assert shipped.fp_position("2.8", parts)[1] - shipped.fp_position("8.7", parts)[1] < 0
+    assert Limits(shipped)({10: -300.0, 57: -300.0}) == ({10: -300.0, 57: -300.0}, [])
+
+
 def test_eyeball_turns_are_clamped_to_a_range_of_motion(shipped):
     from fmc.limits import TURN_LIMITS_DEG, Limits
 
