@@ -35,18 +35,29 @@ fold growth 4 mm above the lid folds, all six at -200: 17.5 degrees, 9.6 run bac
 which put its fold in the crease instead), and a raised brow pulls a little harder on the
 crease above a wide-open lid (the longest edge in Greta's surprise 4.99 -> 5.02 times its
 length, 5.70 -> 5.81 on the example's head).
+
+Driven past its sculpted range (the sculpted raise lifts the middle brow 10 mm, Greta's
+surprise asks 26), the raise still moved the forehead as one block up to the hairline, where
+the skin stood in a ridge, and straight up, in front of the forehead sloping back (8.6 mm).
+Before it is relaxed, :func:`forehead_motion` gives the forehead its own motion: above the
+brows it fades smoothly to the top of the head, and a raised brow and forehead slide along
+the neutral surface. All six at Greta's surprise now turn nothing over (8 before), the
+middle brow alone at 600 nothing (12).
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.interpolate import LinearNDInterpolator
+from scipy.sparse.linalg import splu
 
 from mpeg4.head import Head
 from mpeg4.seams import merged_surface
+from mpeg4.surface import bilaplacian
 
 from .unfold import unfold_offsets
 
-__all__ = ["EXTENT", "SCALES", "relaxed_brows"]
+__all__ = ["EXTENT", "SCALES", "FOREHEAD_BAND", "forehead_motion", "relaxed_brows"]
 
 #: FAP value (ENS units, each way) up to which the brows' whole motion is relaxed: beyond
 #: the authoring value 512, where each piece is whole, as far as the streams go (Greta's
@@ -55,6 +66,68 @@ EXTENT = 600.0
 #: Shares of :data:`EXTENT` at which the relaxed motion must turn nothing over (the smaller
 #: first: a try that unfolds a usual value at the cost of an extreme one is better).
 SCALES = (0.25, 0.5, 1.0)
+#: Metres above the highest brow point where the forehead's own motion starts, and over
+#: which its slide comes in (:func:`forehead_motion`).
+FOREHEAD_BAND = 0.005
+
+
+def forehead_motion(head: Head, v: np.ndarray, t: np.ndarray, offsets: np.ndarray, brow_vertices,
+                    slide: bool = True) -> np.ndarray:
+    """The brows' vertical motion ``offsets`` (V, 3) with the forehead's own.
+
+    Above the brows' band (:data:`FOREHEAD_BAND` over their highest point) the vertical
+    motion is the smoothest (bi-harmonic) between the band, as given, and the top of the
+    head, still: the sculpted raise moves the forehead as one block up to the hairline,
+    where driven past its sculpted range it stood in a ridge. With ``slide`` (the raise),
+    the skin also slides along the neutral surface, taking the depth of the surface where it
+    arrives: straight up, the raised brow and forehead stood out in front of the sloping
+    forehead (8.6 mm at Greta's surprise). The slide fades in (a smoothstep) from just
+    above the upper lids' folds (3.13/3.14) to the top of the brows' band, so the lid and
+    its crease keep moving vertically and the brows slide back part of the way, as the
+    sculpted raise has them (the FAP fixes only their vertical motion).
+
+    Parameters
+    ----------
+    head : Head
+    v, t : (V, 3) float, (T, 3) int
+        The part's surface, seam copies merged (:func:`mpeg4.seams.merged_surface`), metres.
+    offsets : (V, 3) float
+        The brows' motion, metres.
+    brow_vertices : sequence of (k,) int
+        Each brow point's vertices in ``v``.
+    slide : bool
+
+    Returns
+    -------
+    (V, 3) float
+    """
+    heights = [v[np.asarray(b), 1] for b in brow_vertices]
+    top = max(float(h.max()) for h in heights) + FOREHEAD_BAND
+    bottom = min(float(h.min()) for h in heights)
+    crown = float(head.fp_position("11.4")[2]) if "11.4" in head.feature_points else float(v[:, 2].mean())
+    out = np.array(offsets, dtype=np.float64)
+    free = (v[:, 1] > top) & (v[:, 2] > crown)
+    if free.any():
+        q = bilaplacian(v, t)
+        try:
+            lu = splu(q[free][:, free].tocsc())
+        except RuntimeError:  # no boundary around it: leave the motion as given
+            lu = None
+        if lu is not None:
+            out[free, 1] = lu.solve(-np.asarray(q[free][:, ~free] @ out[~free, 1]))
+    if not slide:
+        return out
+    # The forehead seen from the front is a height field: depth at (x, y).
+    folds = [float(head.fp_position(i)[1]) for i in ("3.13", "3.14") if i in head.feature_points]
+    start = (max(folds) if folds else bottom - FOREHEAD_BAND) + FOREHEAD_BAND / 2
+    face = (v[:, 1] > start - FOREHEAD_BAND) & (v[:, 2] > crown)
+    slide = (v[:, 1] > start) & (v[:, 2] > crown)
+    depth = LinearNDInterpolator(v[face][:, :2], v[face, 2])
+    dz = depth(v[slide][:, :2] + np.c_[np.zeros(slide.sum()), out[slide, 1]]) - v[slide, 2]
+    ramp = np.clip((v[slide, 1] - start) / (top - start), 0.0, 1.0)
+    ramp = ramp * ramp * (3 - 2 * ramp)
+    out[slide, 2] = np.where(np.isfinite(dz), dz, 0.0) * ramp
+    return out
 
 
 def relaxed_brows(head: Head, part: str, field: np.ndarray, cuts: np.ndarray, points, sign: float,
@@ -82,9 +155,10 @@ def relaxed_brows(head: Head, part: str, field: np.ndarray, cuts: np.ndarray, po
 
     Returns
     -------
-    (N,) float
+    (N, 3) float
         The motion of each vertex, metres per metre, when every brow point moves 1 m up (its
-        negative when they move down); cut by ``cuts`` it gives each FAP's piece.
+        negative when they move down): vertical but for the forehead's slide
+        (:func:`forehead_motion`); cut by ``cuts`` it gives each FAP's piece.
     """
     along = np.array([np.asarray(head.feature_points[i].weights) @ (cuts[:, j] * field)[list(head.feature_points[i].vertices)]
                       for j, i in enumerate(points)])
@@ -95,6 +169,8 @@ def relaxed_brows(head: Head, part: str, field: np.ndarray, cuts: np.ndarray, po
     first, inverse, v, t = merged_surface(p.vertices, p.triangles)
     offsets = np.zeros((len(v), 3))
     offsets[:, 1] = reach * whole[first]
+    offsets = forehead_motion(head, v, t, offsets, [inverse[np.asarray(head.feature_points[i].vertices)]
+                                                   for i in points], slide=sign > 0)
     held = np.zeros(len(v), bool)
     # Every feature point is held, the lid folds 3.13/3.14 too: let go, the crease moved
     # down onto the held lid margin and folded there (all six brows at -300: 50 triangles).
@@ -102,5 +178,4 @@ def relaxed_brows(head: Head, part: str, field: np.ndarray, cuts: np.ndarray, po
         if fp.part == part:
             held[inverse[np.asarray(fp.vertices)]] = True
     relaxed, _ = unfold_offsets(v, t, offsets, held, SCALES)
-    # The relaxation mixes vertical motions only: the field stays vertical.
-    return relaxed[inverse, 1] / reach
+    return relaxed[inverse] / reach

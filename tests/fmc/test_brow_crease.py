@@ -42,24 +42,31 @@ def test_lowered_brows_do_not_fold_the_lid_crease(authored):
 
 def test_raised_brows_fold_the_forehead_less(authored):
     """Greta's surprise raises the brows by 410 to 560: 41 triangles turned over around
-    4.3/4.4 with the sculpted raise (17 with ``raise_l_m_eyebrow`` alone at 600); now 8 and 12."""
+    4.3/4.4 with the sculpted raise (17 with ``raise_l_m_eyebrow`` alone at 600); 8 and 12
+    with the whole raise relaxed; none since the forehead fades and slides
+    (:func:`fmc.brow_crease.forehead_motion`)."""
     checks = SurfaceChecks(authored)
     surprise = {31: 460.0, 32: 460.0, 33: 560.0, 34: 520.0, 35: 410.0, 36: 410.0}
-    assert checks.inverted(_moved(authored, surprise)["skin"]) <= 15
-    assert checks.inverted(_moved(authored, {33: 600.0})["skin"]) <= 15
+    assert checks.inverted(_moved(authored, surprise)["skin"]) <= 2
+    assert checks.inverted(_moved(authored, {33: 600.0})["skin"]) <= 2
     for v in (150.0, 300.0):
         assert checks.inverted(_moved(authored, {33: v})["skin"]) == 0
 
 
 def test_each_brow_point_moves_its_own_way(authored):
-    """Each piece moves its point by value × ENS straight up or down and leaves the other
-    brow points still, so all six together move each point by its own value."""
+    """Each piece moves its point by value × ENS up or down (along the FAP's axis, as the
+    conformance judges it; raised, the point slides back over the brow ridge with the
+    forehead, a third of its rise for the middle brow, as the sculpted raise has it; lowered
+    it moves straight down) and leaves the other brow points still, so all six together move
+    each point by its own value."""
     head = authored
     for v in (-300.0, 300.0):
         for n, fp in zip((36, 34, 32, 31, 33, 35), BROW_POINTS):
             moved = _moved(head, {n: v})
             d = head.fp_position(fp, moved) - head.fp_position(fp)
-            np.testing.assert_allclose(d, [0.0, v * fap_unit(n, head.fapu), 0.0], atol=0.02 * abs(v) * fap_unit(n, head.fapu))
+            rise = v * fap_unit(n, head.fapu)
+            np.testing.assert_allclose(d[:2], [0.0, rise], atol=0.02 * abs(rise))
+            assert (-0.5 * rise < d[2] <= 0.0) if v > 0 else abs(d[2]) < 0.02 * abs(rise), (n, v, d)
             for other in BROW_POINTS:
                 if other != fp:
                     assert np.linalg.norm(head.fp_position(other, moved) - head.fp_position(other)) < 0.3e-3
