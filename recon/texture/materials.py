@@ -1,7 +1,8 @@
 """Textures for the parts a photo cannot show: eyes, teeth, gums and tongue.
 
-Made here, procedurally: the eye with the iris colour the photos give
-(:func:`iris_colour` samples it around the pupils), teeth with their enamel gradient and
+Made here, procedurally: the eye with the iris and sclera colours the photos give
+(:func:`iris_colour` samples the iris around the pupils, :func:`sclera_colour` the white
+between the iris and the eye's corners), teeth with their enamel gradient and
 gaps, gums and tongue with a soft mottle (:func:`mouth_albedo` picks a mouth part's by its
 name). :func:`planar_uv` gives such a part texture
 coordinates by projecting it along the viewing axis onto its bounding box.
@@ -13,7 +14,8 @@ import numpy as np
 
 from mpeg4.errors import InputError
 
-__all__ = ["IRIS_DEG", "PUPIL_SHARE", "GUM_RGB", "TONGUE_RGB", "eye_texture", "eye_uv", "iris_colour",
+__all__ = ["IRIS_DEG", "PUPIL_SHARE", "GUM_RGB", "TONGUE_RGB", "SCLERA_RGB", "SCLERA_MAX_CHROMA", "eye_texture", "eye_uv",
+           "iris_colour", "sclera_colour",
            "teeth_texture", "mottled_texture", "mouth_albedo", "planar_uv"]
 
 #: Angular radius of the iris seen from the eyeball's centre (about 6 mm on a 15.8 mm
@@ -23,7 +25,14 @@ IRIS_DEG, PUPIL_SHARE = 22.0, 1.0 / 3.0
 GUM_RGB, TONGUE_RGB = (0.80, 0.42, 0.45), (0.85, 0.45, 0.45)
 
 
-def eye_texture(size: int = 256, iris_rgb=(92, 64, 40)) -> np.ndarray:
+#: The sclera's colour when a photo does not show it (RGB, 0..255).
+SCLERA_RGB = (236, 232, 226)
+#: Chroma over luma at which a colour is too coloured for the white of an eye: the
+#: sclera's is about a tenth, skin's (its melanin and blood) a third to a half and more.
+SCLERA_MAX_CHROMA = 0.3
+
+
+def eye_texture(size: int = 256, iris_rgb=(92, 64, 40), sclera_rgb=SCLERA_RGB) -> np.ndarray:
     """(size, size, 3) uint8 eye texture: sclera, iris with radial fibres and a darker limbal
     ring, black pupil, centred; the corners are sclera (the eye's back).
 
@@ -31,8 +40,8 @@ def eye_texture(size: int = 256, iris_rgb=(92, 64, 40)) -> np.ndarray:
     ----------
     size : int
         Pixels per side.
-    iris_rgb : (3,) int
-        The iris colour, 0..255.
+    iris_rgb, sclera_rgb : (3,) int
+        The iris's and the sclera's colours, 0..255.
     """
     y, x = (np.mgrid[0:size, 0:size] + 0.5) / size - 0.5
     r = np.hypot(x, y) * 2  # 1 at the texture's edge, which maps to the eyeball's equator
@@ -40,7 +49,7 @@ def eye_texture(size: int = 256, iris_rgb=(92, 64, 40)) -> np.ndarray:
     angle = np.arctan2(y, x)
     fibres = 0.85 + 0.15 * np.sin(angle * 47) * np.sin(angle * 13 + 3 * r / iris_r)
     img = np.empty((size, size, 3))
-    img[:] = (236, 232, 226)
+    img[:] = sclera_rgb
     iris = r < iris_r
     shade = np.clip(1.15 - 0.6 * (r / iris_r) ** 4, 0.5, 1.2) * fibres
     img[iris] = np.asarray(iris_rgb, float) * shade[iris, None]
@@ -105,6 +114,59 @@ def iris_colour(photo: np.ndarray, pupil_px: np.ndarray, iris_radius_px: float) 
     lo, hi = np.quantile(lum, [0.1, 0.9])
     keep = (lum >= lo) & (lum <= hi)
     return np.median(pix[keep] if keep.sum() >= 3 else pix, axis=0)
+
+
+def sclera_colour(photo: np.ndarray, pupil_px: np.ndarray, corners_px, iris_radius_px: float) -> np.ndarray | None:
+    """(3,) float RGB of the white of an eye: the median of the photo between the iris and
+    the eye's corners, or None when the photo shows too little of it.
+
+    Parameters
+    ----------
+    photo : (H, W, 3) uint8
+    pupil_px : (2,) float
+        Pixel (x, y) of the pupil's centre.
+    corners_px : sequence of (2,) float
+        The eye's corners (3.7 and 3.11, or 3.8 and 3.12), pixels.
+    iris_radius_px : float
+
+    Notes
+    -----
+    Along each line from the pupil to a corner, the pixels from a quarter of the iris
+    radius outside the iris up to four fifths of the way to the corner, within a fifth of
+    the radius of the line. Of those, the less coloured half (the lids' skin and the
+    corner's caruncle are pink or brown, the white is nearly grey), and of that the
+    brighter half but the brightest 5 % (lashes and the lids' shadow are dark, reflections
+    bright). A colour whose chroma (its largest channel less its smallest) is
+    :data:`SCLERA_MAX_CHROMA` of its luma or more is skin, not the white (lowered lids):
+    None.
+    """
+    h, w = photo.shape[:2]
+    r = max(float(iris_radius_px), 1.5)
+    p0 = np.asarray(pupil_px, float)
+    picked = []
+    for c in corners_px:
+        d = np.asarray(c, float) - p0
+        length = float(np.linalg.norm(d))
+        if length < 1.5 * r:
+            continue
+        u = d / length
+        n = np.array([-u[1], u[0]])
+        for s in np.arange(1.25 * r, 0.8 * length, 0.5):
+            for o in np.arange(-0.2 * r, 0.2 * r + 1e-9, 0.5):
+                x, y = p0 + s * u + o * n
+                if 0 <= x < w and 0 <= y < h:
+                    picked.append(photo[int(y), int(x)])
+    if len(picked) < 6:
+        return None
+    pix = np.asarray(picked, np.float64)
+    chroma = pix.max(axis=1) - pix.min(axis=1)
+    pix = pix[chroma <= np.median(chroma)]
+    lum = pix @ [0.299, 0.587, 0.114]
+    lo, hi = np.quantile(lum, [0.5, 0.95])
+    keep = (lum >= lo) & (lum <= hi)
+    white = np.median(pix[keep] if keep.sum() >= 3 else pix, axis=0)
+    y = float(white @ [0.299, 0.587, 0.114])
+    return white if y > 0 and np.ptp(white) < SCLERA_MAX_CHROMA * y else None
 
 
 def teeth_texture(size: int = 128, seed: int = 0) -> np.ndarray:
