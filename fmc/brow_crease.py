@@ -66,8 +66,8 @@ EXTENT = 600.0
 #: Shares of :data:`EXTENT` at which the relaxed motion must turn nothing over (the smaller
 #: first: a try that unfolds a usual value at the cost of an extreme one is better).
 SCALES = (0.25, 0.5, 1.0)
-#: Metres above the highest brow point where the forehead's own motion starts, and over
-#: which its slide comes in (:func:`forehead_motion`).
+#: Metres above the highest brow point where the forehead's own motion starts
+#: (:func:`forehead_motion`).
 FOREHEAD_BAND = 0.005
 
 
@@ -121,12 +121,12 @@ def forehead_motion(head: Head, v: np.ndarray, t: np.ndarray, offsets: np.ndarra
     folds = [float(head.fp_position(i)[1]) for i in ("3.13", "3.14") if i in head.feature_points]
     start = (max(folds) if folds else bottom - FOREHEAD_BAND) + FOREHEAD_BAND / 2
     face = (v[:, 1] > start - FOREHEAD_BAND) & (v[:, 2] > crown)
-    slide = (v[:, 1] > start) & (v[:, 2] > crown)
+    sliding = (v[:, 1] > start) & (v[:, 2] > crown)
     depth = LinearNDInterpolator(v[face][:, :2], v[face, 2])
-    dz = depth(v[slide][:, :2] + np.c_[np.zeros(slide.sum()), out[slide, 1]]) - v[slide, 2]
-    ramp = np.clip((v[slide, 1] - start) / (top - start), 0.0, 1.0)
+    dz = depth(v[sliding][:, :2] + np.c_[np.zeros(sliding.sum()), out[sliding, 1]]) - v[sliding, 2]
+    ramp = np.clip((v[sliding, 1] - start) / (top - start), 0.0, 1.0)
     ramp = ramp * ramp * (3 - 2 * ramp)
-    out[slide, 2] = np.where(np.isfinite(dz), dz, 0.0) * ramp
+    out[sliding, 2] = np.where(np.isfinite(dz), dz, 0.0) * ramp
     return out
 
 
