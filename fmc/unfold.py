@@ -68,8 +68,9 @@ KEPT = frozenset(range(31, 37)) | {6, 7, 53, 54}
 #: they turned 75 triangles over on the generic head, 4 now; at +100 10, now 0. Pulled in
 #: (negative), their folds (249 at -300) do not go without folding more elsewhere: kept.
 CORNER_PAIRS = ((6, 53), (7, 54))
-#: Shares of a border's value at which a pair's sum must turn nothing over, besides
-#: :data:`EXTENT` beyond the outer borders.
+#: Shares of a border's value at which a pair's sum is checked for folds (streams set the
+#: corners' stretches at a tenth to a third of the border; not :data:`EXTENT`: a corner
+#: pulled the mouth's width cannot be unfolded, and trying made the usual values fold).
 PAIR_SHARES = (0.2, 0.5, 1.0)
 
 
@@ -207,9 +208,10 @@ def unfold_tables(head: Head, fat: FAT | None = None, *, keep=KEPT) -> tuple[FAT
 
 def _unfold_pair(head: Head, fat: FAT, pair: tuple[int, int], first, inverse, v, t, held, q) -> int:
     """Unfold the inner and outer lip corner's stretches of ``pair`` together, in ``fat``
-    (replaced in place): their sum, as a stream plays them, relaxed at each border and at
-    :data:`EXTENT`, the change shared between the two tables by each vertex's share of
-    their motion. Returns the triangles the sum still turns over at its worst."""
+    (replaced in place): their sum, as a stream plays them, relaxed at each border's
+    :data:`PAIR_SHARES` (a try taken only when it folds no more at any of them), the change
+    shared between the two tables by each vertex's share of their motion. Returns the
+    triangles the sum still turns over at its worst."""
     tables = [fat[(n, 0)] for n in pair]
     skins = [[m for m in tb.meshes if m.part == "skin"] for tb in tables]
     if any(len(s) != 1 for s in skins) or not np.array_equal(skins[0][0].borders, skins[1][0].borders):
@@ -222,8 +224,6 @@ def _unfold_pair(head: Head, fat: FAT, pair: tuple[int, int], first, inverse, v,
     for k in range(len(b)):
         if b[k] == 0:
             continue
-        # Streams set the corners' stretches at a tenth to a third of the border: a try
-        # must fold no more there, nor at the border.
         both = at[0][k] + at[1][k]
         if not inverted_triangles(v, t, both, PAIR_SHARES).any():
             continue
