@@ -42,6 +42,7 @@ sys.path.insert(0, str(ROOT))
 
 from mpeg4.catalogue import FEATURE_POINTS, FP_IDS  # noqa: E402
 from mpeg4.head import FeaturePointBinding, Head, Part, SparseDisplacement  # noqa: E402
+from mpeg4.render import vertex_normals  # noqa: E402
 from recon.texture.materials import eye_texture, eye_uv  # noqa: E402
 from recon.texture.mouth import OPEN_JAW, bared_pose, brightest_light, lit_in_place  # noqa: E402
 
@@ -66,7 +67,10 @@ RULES = {
     "2.4": "lm 64 (left inner lip corner)", "2.6": "lm 63", "2.8": "lm 65",
     "2.10": "chin boss: on the midline profile from 8.2 down to 2.1, the frontmost vertex below the mentolabial "
             "sulcus (the profile's point furthest behind the line from 8.2 to 2.1) and above 2.1",
-    "2.11": "lm 10 (left chin corner)", "2.13": "lm 13 (left jaw angle on the outline)",
+    "2.11": "lm 10 (left chin corner)",
+    "2.13": "gonion (angle of the jaw): the hindmost skin vertex of the jaw's underside (facing down by 30 "
+            "degrees or more: vertex normal's y under -0.5) lateral of half 10.5's x, in front of 10.7, from 5 mm "
+            "below 10.5 down to 10 mm below 2.1",
     "3.1": "upper lid margin at the pupil: the lowest skin vertex above 3.5 within 1.2 mm of its x and at most "
            "3 mm behind it",
     "3.3": "lower lid margin at the pupil: the highest such skin vertex below 3.5",
@@ -260,7 +264,7 @@ def place_feature_points(data, part_vertices) -> dict[str, tuple[str, tuple[int,
         part, ks, ws = fp[i]
         return np.asarray(ws) @ v[list(ks)]
 
-    for i, k in {"2.1": 8, "2.2": 62, "2.3": 66, "2.4": 64, "2.6": 63, "2.8": 65, "2.11": 10, "2.13": 13,
+    for i, k in {"2.1": 8, "2.2": 62, "2.3": 66, "2.4": 64, "2.6": 63, "2.8": 65, "2.11": 10,
                  "3.7": 45, "3.11": 42, "4.1": 22, "4.3": 24, "4.5": 26, "8.1": 51, "8.2": 57, "8.3": 54,
                  "8.10": 52, "9.5": 35, "9.12": 28, "9.15": 33}.items():
         at(i, lm[k])
@@ -336,6 +340,19 @@ def place_feature_points(data, part_vertices) -> dict[str, tuple[str, tuple[int,
     at("10.5", ear[np.argmin(ear_y)])
     low = ear[ear_y < ear_y.min() + 0.008]
     at("10.7", low[np.argmax(v[low, 2])])
+    # Gonion (the reference's 2.13: the angle of the jaw bone), where the jaw's lower border
+    # turns up towards the ear: the hindmost point of the jaw's underside. ICT's outline
+    # landmark 13 is not it: it lies mid-cheek at the lobe's height, 5 cm in front of the ear.
+    # The underside: skin facing down by 30 degrees or more (the cheek and the neck face
+    # sideways or forward), lateral of half the lobe's x (not the mouth socket's roof nor the
+    # right side), 5 mm or more below the lobe (the lobe and where it joins the face face down
+    # too); in front of 10.7 and at most 1 cm under the chin are guards against the skin
+    # behind the ear and the neck (neither decides on this head).
+    normals = vertex_normals(v, P.skin_triangles)
+    s = P.skin
+    jaw = s[(normals[s, 1] < -0.5) & (v[s, 0] > 0.5 * pos("10.5")[0]) & (v[s, 2] > pos("10.7")[2])
+            & (v[s, 1] < pos("10.5")[1] - 0.005) & (v[s, 1] > pos("2.1")[1] - 0.010)]
+    at("2.13", jaw[np.argmin(v[jaw, 2])])
     # The top of that patch runs onto the temple; the ear's own rim is told from it by what
     # lies behind: a ray into the head from a rim vertex meets skin again within a few
     # centimetres (the side of the head behind the ear), from the temple it does not.

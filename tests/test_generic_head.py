@@ -73,6 +73,10 @@ def test_anatomical_orderings(built):
     assert z["9.3"] == max(z.values())
     assert z["11.6"] == min(z.values())
     assert y["10.1"] > y["10.5"] and z["10.3"] < z["10.7"]
+    # The gonion 2.13 at the jaw's angle: below the lobe and above the chin, behind the chin's
+    # corner and in front of the ear, between them sideways (not mid-cheek at the lobe's height).
+    assert y["2.1"] < y["2.11"] < y["2.13"] < y["10.5"] - 0.02
+    assert z["10.7"] < z["2.13"] < z["2.11"] and x["2.11"] < x["2.13"] < x["10.5"]
     # 7.1, the top of the spine, is inside the neck: behind the lobes, in front of the nape.
     assert z["11.6"] < z["7.1"] < z["10.5"] and abs(y["7.1"] - y["10.5"]) < 0.01
 
