@@ -50,7 +50,7 @@ ANATOMY = {
     "2.4": "inner lip corner, left", "2.5": "inner lip corner, right", "2.6": "inner upper lip, left half",
     "2.7": "inner upper lip, right half", "2.8": "inner lower lip, left half", "2.9": "inner lower lip, right half",
     "2.10": "chin boss (most prominent point of the chin), midline", "2.11": "chin outline, left", "2.12": "chin outline, right",
-    "2.13": "lower jaw, left", "2.14": "lower jaw, right",
+    "2.13": "angle of the jaw (gonion), left", "2.14": "angle of the jaw (gonion), right",
     "3.1": "upper lid margin, left eye", "3.2": "upper lid margin, right eye", "3.3": "lower lid margin, left eye",
     "3.4": "lower lid margin, right eye", "3.5": "left iris centre", "3.6": "right iris centre",
     "3.7": "outer eye corner, left", "3.8": "inner eye corner, right", "3.9": "below the lower lid, left eye",
