@@ -7,8 +7,8 @@ strands are painted onto the neck. Here the skin's colours are learnt from the f
 Gaussian in CIELAB over the pixels of skin vertices the photo sees, grown from the cheeks:
 :func:`face_skin_model`). Below the chin the pixels that are not skin by that model and
 that rise from the bottom of the head's region — the shirt comes up from below — are taken
-for clothes; behind and below the jaw's angles (:func:`nape_zone`) whatever is not skin is
-taken for hair. Both are painted as the skin around them (:func:`fill_from_skin`): the
+for clothes; under the ears behind the jaw (:func:`nape_zone`) whatever is not skin is taken
+for hair. Both are painted as the skin around them (:func:`fill_from_skin`): the
 skin's colour carried smoothly in from all round (a harmonic membrane), with the skin's own
 grain.
 """
@@ -133,24 +133,44 @@ def clothes_mask(photo: np.ndarray, head_mask: np.ndarray, model: tuple[np.ndarr
 
 
 def nape_zone(head: Head, camera: Camera, depth: np.ndarray, within: np.ndarray | None = None) -> np.ndarray:
-    """(H, W) bool: where a photo shows the neck behind and below the jaw's angles.
+    """(H, W) bool: where a photo shows the neck under the ears, behind the jaw.
 
-    The skin there (below the mean height of the jaw's angles 2.13/2.14 and behind their
-    mean depth) is neck and nape, not scalp: long hair hanging over it belongs to no part
-    of the head's mesh, and a beard does not reach it. Each pixel is judged by the surface
+    The skin there is neck and nape, not scalp: long hair hanging over it belongs to no
+    part of the head's mesh, and a beard does not reach it. It lies below the ear lobes
+    (the mean height of 10.5/10.6) and behind the jaw's rear edge: the line from where the
+    lobes join the face (10.7/10.8) down to the jaw's angles (2.13/2.14, the gonion), then
+    below the angles behind their depth (the means of each pair). Without the ears' points,
+    only what lies below and behind the jaw's angles. Each pixel is judged by the surface
     point it shows (``depth``: the head's depth render through ``camera``, ``inf`` where
     it does not show), so the zone's edge is as smooth as the photo's pixels; only the
     pixels ``within`` ((H, W) bool, optional: the head's region) are looked at. Empty when
     the head lacks 2.13 or 2.14."""
     depth = np.asarray(depth, np.float64)
     h, w = depth.shape
-    if not all(i in head.feature_points for i in ("2.13", "2.14")):
+    fps = head.feature_points
+    if not all(i in fps for i in ("2.13", "2.14")):
         return np.zeros((h, w), bool)
     jaw = 0.5 * (head.fp_position("2.13") + head.fp_position("2.14"))
+    top, joint = jaw[1], None
+    if all(i in fps for i in ("10.5", "10.6", "10.7", "10.8")):
+        top = max(jaw[1], 0.5 * (head.fp_position("10.5")[1] + head.fp_position("10.6")[1]))
+        joint = 0.5 * (head.fp_position("10.7") + head.fp_position("10.8"))
+        if joint[1] <= jaw[1]:
+            top, joint = jaw[1], None
+
+    def behind(p: np.ndarray) -> np.ndarray:
+        """Points (K, 3) below ``top`` and behind the jaw's rear edge at their height."""
+        z = np.full(len(p), jaw[2])
+        if joint is not None:
+            t = np.clip((p[:, 1] - jaw[1]) / (joint[1] - jaw[1]), 0.0, 1.0)
+            z = jaw[2] + t * (joint[2] - jaw[2])
+        return (p[:, 1] < top) & (p[:, 2] < z)
+
     # Rows above every skin vertex near the zone (within a centimetre, far more than a
     # triangle's size) cannot show it: only the rows below are unprojected.
     v = head.skin.vertices
-    near = (v[:, 1] < jaw[1] + 0.01) & (v[:, 2] < jaw[2] + 0.01)
+    z_max = jaw[2] if joint is None else max(jaw[2], joint[2])
+    near = (v[:, 1] < top + 0.01) & (v[:, 2] < z_max + 0.01)
     if not near.any():
         return np.zeros((h, w), bool)
     first = int(np.clip(np.floor(camera.project(v[near])[:, 1].min()) - 2, 0, h))
@@ -159,7 +179,7 @@ def nape_zone(head: Head, camera: Camera, depth: np.ndarray, within: np.ndarray 
     ys += first
     p = camera.unproject(np.c_[xs, ys], depth[ys, xs])
     out = np.zeros((h, w), bool)
-    out[ys, xs] = (p[:, 1] < jaw[1]) & (p[:, 2] < jaw[2])
+    out[ys, xs] = behind(p)
     return out
 
 

@@ -154,8 +154,8 @@ def test_a_shirt_is_not_painted_on_the_neck(ict_npz, monkeypatch):
 def test_hair_hanging_over_the_nape_is_not_painted_on_the_neck(ict_npz, monkeypatch):
     """Strands of dark hair drawn down the neck behind the jaw in the side photo (as long
     hair falls there) are painted as the skin around them (recon.texture.clothes.nape_zone);
-    without that step they are painted on the neck (0.14 of the nape's vertices take
-    their colour; filled, none)."""
+    without that step they are painted on the neck (0.17 of the skin under the ears behind
+    the jaw's angle takes their colour; filled, none)."""
     import cv2
     from scipy.ndimage import map_coordinates
 
@@ -166,9 +166,12 @@ def test_hair_hanging_over_the_nape_is_not_painted_on_the_neck(ict_npz, monkeypa
     sp = synthetic_pair(1000, data=load_ict(ict_npz))
     pts = sp.fdp.views["side"].points
     lobe = np.mean([pts[i] for i in ("10.5", "10.6") if i in pts], axis=0)
-    jaw = np.mean([pts[i] for i in ("2.13", "2.14") if i in pts], axis=0)
     back = np.sign(lobe[0] - pts["9.3"][0])  # away from the nose
-    reach = abs(lobe[0] - jaw[0]) + 10  # pixels behind the jaw's angle
+    front = sp.fdp.views["front"].points
+    # The strands' scale, pixels: 0.7 of the distance between the pupils (147 px, as the
+    # lobe's distance from the old jaw point, mid-cheek, gave; from the gonion, 20 mm in
+    # front of the lobe, the strands would end above most of the neck).
+    reach = 0.7 * float(np.linalg.norm(front["3.5"] - front["3.6"]))
     side = sp.side.copy()
     rng = np.random.default_rng(0)
     hair = (70, 45, 30)
@@ -185,8 +188,10 @@ def test_hair_hanging_over_the_nape_is_not_painted_on_the_neck(ict_npz, monkeypa
         s, v = r.skin, r.head.parts["skin"].vertices
         size = tex.shape[0]
         jaw3 = 0.5 * (r.head.fp_position("2.13") + r.head.fp_position("2.14"))
+        lobe3 = 0.5 * (r.head.fp_position("10.5") + r.head.fp_position("10.6"))
         sv = v[s.source]
-        nape = (sv[:, 1] < jaw3[1]) & (sv[:, 2] < jaw3[2]) & (s.vertex_region == 1)  # seen by the side photo
+        # Under the ears, behind the jaw's angle, seen by the side photo.
+        nape = (sv[:, 1] < lobe3[1]) & (sv[:, 2] < jaw3[2]) & (s.vertex_region == 1)
         x = s.uv[nape, 0] * size - 0.5
         y = (1 - s.uv[nape, 1]) * size - 0.5
         got = np.stack([map_coordinates(tex[..., c], [y, x], order=1) for c in range(3)], axis=1)
@@ -196,7 +201,7 @@ def test_hair_hanging_over_the_nape_is_not_painted_on_the_neck(ict_npz, monkeypa
     filled = hair_on_the_nape()
     monkeypatch.setattr(clothes, "nape_zone", lambda head, camera, depth, within=None: np.zeros(depth.shape, bool))
     painted = hair_on_the_nape()
-    assert painted > 0.08, painted  # 0.14 of the nape the side photo gives
+    assert painted > 0.08, painted  # 0.17 of the nape the side photo gives
     assert filled < 0.2 * painted, (filled, painted)
 
 
