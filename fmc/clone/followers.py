@@ -98,10 +98,11 @@ def surface_followers(head: Head, candidates: Iterable[str]) -> tuple[dict[str, 
 #: The chin's feature points: its bottom (2.1), its boss (2.10) and corners (2.11, 2.12),
 #: where the skin is held to the jaw's bone. The skin over the jaw's angles (2.13, 2.14)
 #: slides over it: on the generic head's own jaw opening the lower teeth, turned by the
-#: chin's points, land 4.5 mm from where its tables put them (of 11.6 mm), by those and
-#: the angles' 4.6 mm (3.3 and 4.4 with the chin boss on the lower lip's underside, a
-#: point of the lip's rather than of the chin's, whose longer lever suited this one motion;
-#: without 2.10 7.7 mm).
+#: chin's points, land 4.5 mm from where its tables put them (of 11.6 mm; 3.3 with the chin
+#: boss on the lower lip's underside, a point of the lip's rather than of the chin's, whose
+#: longer lever suited this one motion; without 2.10 7.7 mm), by those and the angles' 4.4
+#: mm (4.6 with the angles on the cheek at the lobes' height, before they were put at the
+#: gonion).
 JAW_FPS = ("2.1", "2.10", "2.11", "2.12")
 #: Target roles that ride on the jaw: with no counterpart on the source (a head whose one
 #: mesh holds everything, its teeth not found), they turn with the jaw instead of staying.

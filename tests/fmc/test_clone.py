@@ -347,9 +347,11 @@ def test_contours_bring_true_counterparts_closer_on_an_ict_identity(identity):
         # Same topology: vertex i's true counterpart is vertex i (mm in the common space).
         d = 1000 * np.hypot((a_t[:, 0] - a_s[:, 0]) * a_s[:, 2], (a_t[:, 1] - a_s[:, 1]) * height)
         miss[contours] = np.median(d[near]), np.percentile(d[near], 90)
-    # Measured within 12 mm of the eyes' and the inner lips' points: median 0.386 to
-    # 0.310 mm, 90th percentile 0.945 to 0.859 mm.
-    assert miss[True][0] < 0.32 and miss[True][1] < 0.87
+    # Measured within 12 mm of the eyes' and the inner lips' points: median 0.373 to
+    # 0.322 mm, 90th percentile 0.956 to 0.884 mm (0.386 to 0.310 and 0.945 to 0.859 with
+    # 2.13/2.14 on the cheek at the lobes' height, nearer the eyes than the gonion; over the
+    # face, 90th percentile 1.68 mm then, 1.60 now).
+    assert miss[True][0] < 0.33 and miss[True][1] < 0.89
     assert miss[True][0] < miss[False][0] - 0.05 and miss[True][1] < miss[False][1] - 0.05
 
 
