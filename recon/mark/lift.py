@@ -75,7 +75,8 @@ class _Surface:
         if not len(origins):
             return tri, loc
         t, r, p = self.mesh.ray.intersects_id(origins, directions, multiple_hits=False, return_locations=True)
-        tri[r], loc[r] = t, p
+        if len(r):  # with no hit at all trimesh gives the locations as an empty (0,) array
+            tri[r], loc[r] = t, np.reshape(p, (-1, 3))
         if radius <= 0:
             return tri, loc
         if not hasattr(self, "_tree"):

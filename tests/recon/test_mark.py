@@ -111,6 +111,22 @@ def _mesh_file(tmp_path, mesh: trimesh.Trimesh, name: str):
     return path
 
 
+def test_rays_that_all_miss_give_no_hits_not_an_error():
+    # The MediaPipe face mask (benchmarks/foreign_heads.py) shows no jaw's angle: the side
+    # ray of its gonion, the one side ray cast, met nothing, and trimesh's empty locations
+    # did not fit the (0, 3) slot.
+    from recon.mark.lift import _Surface
+
+    surface = _Surface(Head({"skin": Part("skin", np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+                                          np.array([[0, 1, 2]]))}))
+    origins, away = np.array([[0.2, 0.2, 1.0]]), np.array([[0.0, 0.0, 1.0]])
+    for radius in (0.0, 0.0015):
+        tri, loc = surface.cast(origins, away, radius=radius)
+        assert tri.tolist() == [-1] and np.isnan(loc).all()
+    tri, loc = surface.cast(origins, -away)
+    assert tri.tolist() == [0] and np.allclose(loc, [[0.2, 0.2, 0.0]])
+
+
 def test_a_cube_is_not_a_head(tmp_path):
     path = _mesh_file(tmp_path, trimesh.creation.box((20, 20, 20)).subdivide().subdivide(), "cube.ply")
     with pytest.raises(InputError, match="no face found") as e:
