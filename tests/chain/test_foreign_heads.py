@@ -51,14 +51,15 @@ def test_makehuman_is_marked_and_its_own_targets_clone_onto_the_generic_head(tmp
     save_head(raw, tmp_path / "mh.glb")
     _, marking = mark_file(tmp_path / "mh.glb")
     head = load_head(tmp_path / "mh.glb")
-    # Against the points placed on it by hand (48 of them): median 4.9 % of ES0, p90 10.9 %
-    # (the jaw angles, 56 %, are where the generic head's own points differ from the
-    # reference's anatomy).
+    # Against the points placed on it by hand (48 of them): median 4.2 % of ES0, p90 8.2 %
+    # (the nose's alae furthest off, 11-12 %; the jaw angles 4.1 and 5.2 %: 56 % and 54 %,
+    # p90 10.9 %, when the generic head's were ICT's outline landmark on the cheek, not the
+    # gonion).
     reference, unsure = reference_points()
     found = {i: b.position(raw.parts["skin"].vertices) for i, b in marking.fdp.bindings.items() if b.part == "skin"}
     errors = marking_error(found, reference)
     assert len(errors) == len(reference) == 48
-    assert np.median(list(errors.values())) < 6.0 and np.percentile(list(errors.values()), 90) < 15.0, errors
+    assert np.median(list(errors.values())) < 6.0 and np.percentile(list(errors.values()), 90) < 11.0, errors
     assert set(head.morph_targets) == {"jaw_drop", "smile"}
     p = head.fp_positions()
     es0 = np.linalg.norm(p["3.5"] - p["3.6"])
