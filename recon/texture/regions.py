@@ -56,8 +56,8 @@ def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, 
                  side: str) -> tuple[np.ndarray, np.ndarray]:
     """The feature line of one side of the face, top to bottom.
 
-    Its feature points (:data:`FEATURE_LINE`, mirrored for ``"R"``) and, below the angle of
-    the jaw, a line down the neck: at every :data:`_NECK_STEP` down to the bottom of the
+    Its feature points (:data:`FEATURE_LINE`, mirrored for ``"R"``) and, below the last of
+    them (the ear's front), a line down the neck: at every :data:`_NECK_STEP` down to the bottom of the
     skin, the point of the skin's cross-section (its convex outline) that faces half way
     between the front and the side, where both photos see the neck at 45°. The front photo
     gets the neck's front, the side photos what lies behind.
