@@ -476,8 +476,9 @@ def _layer_masks(A: np.ndarray, polygon: np.ndarray, pts, front: FittedCamera, s
 def textured_head(head: Head, skin: SkinTexture, front_photo: np.ndarray, seed: int = 0) -> Head:
     """The head with the skin's texture applied and the other parts given textures of
     their own: the eyes with the iris and sclera colours of the front photo (sampled at the
-    pupils 3.5 and 3.6 and towards the eyes' corners, the photo's shading taken out), teeth, gums and tongue made by :mod:`recon.texture.materials` and lit as
-    the open mouth lets light in (:mod:`recon.texture.mouth`).
+    pupils 3.5 and 3.6 and towards the eyes' corners, the photo's shading taken out),
+    teeth, gums and tongue made by :mod:`recon.texture.materials` and lit as the open
+    mouth lets light in (:mod:`recon.texture.mouth`).
 
     Parameters
     ----------
@@ -500,37 +501,12 @@ def textured_head(head: Head, skin: SkinTexture, front_photo: np.ndarray, seed: 
                          fix="texture a head of the same topology")
     out = split_vertices(head, "skin", skin.source, skin.triangles, uv=skin.uv, texture=skin.texture)
     out.parts["skin"].colour = (1.0, 1.0, 1.0)
-    front = skin.cameras["front"]
-    # The photo's colours with its light taken out as the skin's was (its shading), so the
-    # eyes sit in the skin as the photo has them: a fixed paper-white sclera stared out of
-    # darker real faces.
-    light = skin.lighting.get("front") if skin.lighting else None
-    shading = (light.shading if light is not None and light.fallback is None
-               and light.shading.shape == front_photo.shape[:2] else None)
-    eye_pts = {"eye_l": ("3.5", "3.7", "3.11"), "eye_r": ("3.6", "3.8", "3.12")}
-    colours = {}
-    for name, (fp, *corners) in eye_pts.items():
-        if name not in out.parts or fp not in out.feature_points:
-            continue
-        pupil = out.fp_position(fp)
-        k = np.linalg.norm(front.project((pupil + [0.001, 0, 0])[None]) - front.project(pupil[None])) / 0.001
-        at = front.project(pupil[None])[0]
-        lit = 1.0 if shading is None else float(shading[int(np.clip(at[1], 0, shading.shape[0] - 1)),
-                                                        int(np.clip(at[0], 0, shading.shape[1] - 1))])
-        ends = [front.project(out.fp_position(c)[None])[0] for c in corners if c in out.feature_points]
-        white = materials.sclera_colour(front_photo, at, ends, 0.0058 * k)
-        colours[name] = (materials.iris_colour(front_photo, at, 0.0058 * k) / lit,
-                         None if white is None else white / lit)
-    # Both eyes have one white: where a lowered lid hides one, the other's.
-    whites = [w for _, w in colours.values() if w is not None]
-    white = np.mean(whites, axis=0) if whites else np.asarray(materials.SCLERA_RGB, float)
-    for name, (rgb, _) in colours.items():
+    for name, (pupil, iris, white) in _eye_colours(out, skin, front_photo).items():
         part = out.parts[name]
-        pupil = out.fp_position(eye_pts[name][0])
         gaze = pupil - part.centre if part.centre is not None else np.array([0.0, 0.0, 1.0])
         centre = part.centre if part.centre is not None else part.vertices.mean(axis=0)
         part.uv = materials.eye_uv(part.vertices, centre, gaze)
-        part.texture = materials.eye_texture(256, tuple(np.clip(rgb, 0, 255)), tuple(np.clip(white, 0, 255)))
+        part.texture = materials.eye_texture(256, tuple(np.clip(iris, 0, 255)), tuple(np.clip(white, 0, 255)))
         part.colour = (1.0, 1.0, 1.0)
     # The mouth's parts are lit as the open mouth lets light in, found on the head before
     # its skin was split (its topology is the generic head's, whose tables open the jaw).
@@ -543,3 +519,35 @@ def textured_head(head: Head, skin: SkinTexture, front_photo: np.ndarray, seed: 
                                                "seams_duplicated_vertices": int(len(skin.source)
                                                                                 - head.skin.n_vertices)})
     return out
+
+
+def _eye_colours(head: Head, skin: SkinTexture, front_photo: np.ndarray) -> dict:
+    """``{eye part: (pupil (3,) mm, iris RGB (3,), white RGB (3,))}`` from the front photo.
+
+    The photo's colours with its light taken out as the skin's was (its shading), so the
+    eyes sit in the skin as the photo has them: a fixed paper-white sclera stared out of
+    darker real faces. Both eyes get one white: where a lowered lid hides one, the other's.
+    """
+    from . import materials
+
+    front = skin.cameras["front"]
+    light = skin.lighting.get("front") if skin.lighting else None
+    shading = (light.shading if light is not None and light.fallback is None
+               and light.shading.shape == front_photo.shape[:2] else None)
+    eye_pts = {"eye_l": ("3.5", "3.7", "3.11"), "eye_r": ("3.6", "3.8", "3.12")}
+    found = {}
+    for name, (fp, *corners) in eye_pts.items():
+        if name not in head.parts or fp not in head.feature_points:
+            continue
+        pupil = head.fp_position(fp)
+        at = front.project(pupil[None])[0]
+        px_per_mm = np.linalg.norm(front.project((pupil + [0.001, 0, 0])[None])[0] - at) / 0.001
+        lit = 1.0 if shading is None else float(shading[int(np.clip(at[1], 0, shading.shape[0] - 1)),
+                                                        int(np.clip(at[0], 0, shading.shape[1] - 1))])
+        ends = [front.project(head.fp_position(c)[None])[0] for c in corners if c in head.feature_points]
+        white = materials.sclera_colour(front_photo, at, ends, 0.0058 * px_per_mm)
+        found[name] = (pupil, materials.iris_colour(front_photo, at, 0.0058 * px_per_mm) / lit,
+                       None if white is None else white / lit)
+    whites = [w for _, _, w in found.values() if w is not None]
+    white = np.mean(whites, axis=0) if whites else np.asarray(materials.SCLERA_RGB, float)
+    return {name: (pupil, iris, white) for name, (pupil, iris, _) in found.items()}
