@@ -166,7 +166,7 @@ def unfold_tables(head: Head, fat: FAT | None = None, *, keep=KEPT) -> tuple[FAT
     for fp in head.feature_points.values():
         if fp.part == "skin":
             held[inverse[np.asarray(fp.vertices)]] = True
-    q = None
+    relax = _Relaxer(v, t, held)
     left = {}
     for (n, hl), table in given.items():
         if hl or n in keep or not any(m.part == "skin" for m in table.meshes):
@@ -184,11 +184,9 @@ def unfold_tables(head: Head, fat: FAT | None = None, *, keep=KEPT) -> tuple[FAT
                     continue
                 # Beyond the outer borders the slope goes on: streams go that far.
                 far = max(1.0, EXTENT / abs(b[k])) if k in (0, len(b) - 1) else 1.0
-                scales = (1.0 / far, 1.0)
-                if not inverted_triangles(v, t, far * o, scales).any():
+                relaxed, bad = relax(far * o, (1.0 / far, 1.0))
+                if relaxed is None:
                     continue
-                q = bilaplacian(v, t) if q is None else q
-                relaxed, bad = unfold_offsets(v, t, far * o, held, scales, q)
                 at[k], changed = relaxed / far, True
                 if bad:
                     left[n] = max(left.get(n, 0), bad)
@@ -198,15 +196,29 @@ def unfold_tables(head: Head, fat: FAT | None = None, *, keep=KEPT) -> tuple[FAT
             out.add(FaceDefTable(table.fap, table.high_level, meshes, list(table.transforms)))
     for pair in CORNER_PAIRS:
         if all(n in keep and (n, 0) in given for n in pair):
-            q = bilaplacian(v, t) if q is None else q
-            bad = _unfold_pair(head, out, pair, first, inverse, v, t, held, q)
+            bad = _unfold_pair(head, out, pair, first, inverse, relax)
             for n in pair:
                 if bad:
                     left[n] = max(left.get(n, 0), bad)
     return out, left
 
 
-def _unfold_pair(head: Head, fat: FAT, pair: tuple[int, int], first, inverse, v, t, held, q) -> int:
+class _Relaxer:
+    """:func:`unfold_offsets` on one merged surface, called only for offsets that fold at
+    one of their scales (the surface's bi-Laplacian built at the first such call)."""
+
+    def __init__(self, vertices: np.ndarray, triangles: np.ndarray, held: np.ndarray):
+        self.v, self.t, self.held, self.q = vertices, triangles, held, None
+
+    def __call__(self, offsets: np.ndarray, scales, **options) -> tuple[np.ndarray | None, int]:
+        """``(relaxed, still_inverted)``, or ``(None, 0)`` when ``offsets`` fold nowhere."""
+        if not inverted_triangles(self.v, self.t, offsets, scales).any():
+            return None, 0
+        self.q = bilaplacian(self.v, self.t) if self.q is None else self.q
+        return unfold_offsets(self.v, self.t, offsets, self.held, scales, self.q, **options)
+
+
+def _unfold_pair(head: Head, fat: FAT, pair: tuple[int, int], first, inverse, relax: _Relaxer) -> int:
     """Unfold the inner and outer lip corner's stretches of ``pair`` together, in ``fat``
     (replaced in place): their sum, as a stream plays them, relaxed at each border's
     :data:`PAIR_SHARES` (a try taken only when it folds no more at any of them), the change
@@ -225,9 +237,9 @@ def _unfold_pair(head: Head, fat: FAT, pair: tuple[int, int], first, inverse, v,
         if b[k] == 0:
             continue
         both = at[0][k] + at[1][k]
-        if not inverted_triangles(v, t, both, PAIR_SHARES).any():
+        relaxed, bad = relax(both, PAIR_SHARES, no_worse=True)
+        if relaxed is None:
             continue
-        relaxed, bad = unfold_offsets(v, t, both, held, PAIR_SHARES, q, no_worse=True)
         change = relaxed - both
         size = [np.linalg.norm(a[k], axis=1) for a in at]
         share = size[0] / np.maximum(size[0] + size[1], 1e-12)
