@@ -53,6 +53,10 @@ MEETING_PAIRS = ((19, 21), (20, 22), (4, 5), (8, 10), (9, 11), (51, 52), (55, 57
 #: contour above its outer one. A stream that raises the lower lip's outer contour by 609
 #: and its inner one by 182 (Greta's anger) would turn the lip inside out.
 LIP_PAIRS = ((51, 4), (55, 8), (56, 9), (5, 52), (10, 57), (11, 58))
+#: Passes over the lips' pairs at most: each pass moves both lips of a pair by halves, so
+#: lips pressed from both sides settle geometrically; a handful suffice.
+LIMIT_PASSES = 20
+
 #: Share of its neutral height a lip keeps between its contours at the most (this project's
 #: choice: a lip is squeezed thinner, not through itself).
 LIP_KEEP = 0.25
@@ -126,8 +130,10 @@ class Limits:
             jaw = effect_of(self._jaw, out, self._n_points)
             high = {k: v for k, v in out.items() if isinstance(k, tuple)}
             high = effect_of(self._high, high, self._n_points) if high else np.zeros(self._n_points)
-            # Twice: lips that meet may then squeeze a lip past its own keep, once.
-            for _ in range(2):
+            # Until none acts (bounded): lips that meet may then squeeze a lip past its
+            # own keep, and the keep push the lips into each other again.
+            for _ in range(LIMIT_PASSES):
+                acted = False
                 for p, (upper, lower, y_u, y_l, k_u, k_l, press) in enumerate(self.pairs):
                     if upper not in out and lower not in out:
                         continue
@@ -136,12 +142,15 @@ class Limits:
                     top, bottom = y_u + own_u + high[2 * p], y_l + own_l + high[2 * p + 1]
                     excess = bottom - top - press
                     if excess > 1e-9:
+                        acted = True
                         out[upper] = (top + 0.5 * excess - y_u - high[2 * p]) / k_u
                         out[lower] = (bottom - 0.5 * excess - y_l - high[2 * p + 1]) / k_l
                         what = "kept a lip's height" if press < 0 else "stopped where they meet"
                         phrase = f"{FAPS[upper].name}/{FAPS[lower].name} {what}"
                         if phrase not in changed:
                             changed.append(phrase)
+                if not acted:
+                    break
         for n, most in self.midline.items():
             v = out.get(n)
             if v and v > most:

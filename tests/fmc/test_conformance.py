@@ -204,3 +204,20 @@ def test_the_brows_squeeze_stops_short_of_the_midline(shipped):
     from fmc.limits import Limits
 
     assert Limits(shipped)({37: 60.0, 38: 60.0}) == ({37: 60.0, 38: 60.0}, [])
+
+
+def test_the_limits_settle_all_pairs_at_once(shipped):
+    """Limits are a projection: a frame they changed passes through them unchanged, however
+    hard the contours are pushed into each other (lips meeting squeeze a lip past its own
+    height, its height pushes the lips together again), so none is left violated."""
+    from fmc.limits import Limits
+
+    limits = Limits(shipped)
+    rng = np.random.default_rng(3)
+    lips = (4, 5, 8, 9, 10, 11, 12, 13, 51, 52, 55, 56, 57, 58, 59, 60)
+    for _ in range(40):
+        frame = {n: float(v) for n, v in zip(lips, rng.uniform(-1000, 1000, len(lips)))}
+        once, changed = limits(frame)
+        again, changed_again = limits(once)
+        assert changed
+        np.testing.assert_allclose([again[n] for n in lips], [once[n] for n in lips], atol=0.05)
