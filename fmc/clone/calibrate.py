@@ -80,28 +80,36 @@ def calibrate_tables(head: Head, fat: FAT | None = None, limits: tuple[float, fl
         d[meshes[0].indices] = meshes[0].displacements
         dense[n] = (table, meshes[0], d, binding)
     partner = {**LIP_CONTOUR_PAIRS, **{o: i for i, o in LIP_CONTOUR_PAIRS.items()}}
+    # Per table and interval, its point's motion along the FAP's axis per FAP unit (in units
+    # of the FAP's unit) by its own table, and by its lip partner's: a lip FAP played alone
+    # brings its other contour's partner with it at the same value
+    # (mpeg4.io.fap.fill_lip_contours), so the point moves by both tables.
+    along, lent = {}, {}
     for n, (table, mesh, d, binding) in dense.items():
         axis = np.asarray(FAPS[n].axis_vector, dtype=np.float64)
-        # Per interval, the point's motion along the axis per FAP unit, in units of the FAP's unit.
-        along = binding.position(d) @ axis
-        # A lip FAP played alone brings its other contour's partner with it at the same
-        # value (mpeg4.io.fap.fill_lip_contours): the point moves by both tables.
-        lent = np.zeros(len(along))
+        along[n] = binding.position(d) @ axis
+        lent[n] = np.zeros(len(along[n]))
         if partner.get(n) in dense:
             _, other_mesh, other_d, other_binding = dense[partner[n]]
             if np.array_equal(other_mesh.borders, mesh.borders) and other_binding.part == binding.part:
-                lent = binding.position(other_d) @ axis
-        factor = np.ones(len(along))
-        for i, (a, b) in enumerate(zip(along, lent)):
+                lent[n] = binding.position(other_d) @ axis
+    factors = {}
+    for n in dense:
+        factor = np.ones(len(along[n]))
+        for i, (a, b) in enumerate(zip(along[n], lent[n])):
             if a == 0.0:  # this interval moves nothing (a unidirectional FAP's other side)
                 continue
-            need = (1.0 - b) / a
+            need = _joint_factor(n, partner.get(n), i, along, lent, limits)
+            need = (1.0 - b) / a if need is None else need
             if limits[0] <= need <= limits[1]:
                 factor[i] = need
             elif n not in off or _farther(need, off[n]):
                 off[n] = need
+        factors[n] = factor
+    for n, factor in factors.items():
         if np.all(factor == 1.0):
             continue
+        table, mesh = dense[n][:2]
         scaled = [FaceDefMesh(m.part, m.borders, m.indices, m.displacements * factor[None, :, None])
                   if np.array_equal(m.borders, mesh.borders) else m for m in table.meshes]
         out.add(FaceDefTable(table.fap, table.high_level, scaled, []))
@@ -114,3 +122,20 @@ def _farther(a: float, b: float) -> bool:
     def score(x):
         return np.inf if x <= 0 else abs(np.log(x))
     return score(a) > score(b)
+
+
+def _joint_factor(n: int, m: int | None, i: int, along: dict, lent: dict, limits) -> float | None:
+    """Table ``n``'s factor for interval ``i`` scaled together with its lip partner ``m``:
+    the 2×2 solve that moves both points by exactly one unit each, when both factors lie
+    within ``limits``; None when there is no partner sharing the interval or the solve
+    falls outside (then each table is scaled with its partner's motion as it is)."""
+    if m is None or m not in along or len(along[m]) != len(along[n]) or along[m][i] == 0.0 \
+            or not (lent[n][i] or lent[m][i]):
+        return None
+    a = np.array([[along[n][i], lent[n][i]], [lent[m][i], along[m][i]]])
+    if abs(np.linalg.det(a)) < 1e-9 * abs(a).max() ** 2:
+        return None
+    s_n, s_m = np.linalg.solve(a, np.ones(2))
+    if limits[0] <= s_n <= limits[1] and limits[0] <= s_m <= limits[1]:
+        return float(s_n)
+    return None

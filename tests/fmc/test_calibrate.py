@@ -82,10 +82,8 @@ def test_a_lip_fap_is_scaled_with_the_partner_a_player_fills_in(head):
                 for k, m in played.items()}
         want = v * fap_unit(inner, head.fapu)
         assert abs(move["before"] / want - 1) > 0.05
-        # Exact but for the partner's own scaling, done at the same time for its own point:
-        # its factor's excess over 1 times its share here (1.5e-6 of the motion on the
-        # generic head with the gonion; 1e-6 asserted before was at that noise level).
-        assert move["after"] == pytest.approx(want, rel=1e-4)
+        # Exact: the two tables are scaled together (a 2x2 solve per interval).
+        assert move["after"] == pytest.approx(want, rel=1e-9)
 
 
 def _on(a, b):
