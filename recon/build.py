@@ -12,10 +12,10 @@ topology. From a front photo alone the depth comes from the identity model
 (:mod:`recon.texture.skin_model`); ``head.fdp.json`` records that the depth is estimated.
 
 :func:`run_build` is what the command runs: it reads the photos and annotations, builds,
-and writes the bundle — ``head.glb``, ``head.obj`` + ``head.mtl`` + ``texture.png``,
-``head.fdp.json`` (3D feature points, their texture coordinates, FAPU, the annotations and
-the provenance: inputs, options, version) and ``preview.png`` (renders beside the input
-photos). The bundle appears whole or not at all (:func:`recon.publish.publish`): written in
+and writes the bundle (:mod:`recon.bundle`) — ``head.glb``, ``head.obj`` + ``head.mtl`` +
+``texture.png``, ``head.fdp.json`` (3D feature points, their texture coordinates, FAPU, the
+annotations and the provenance: inputs, options, version) and ``preview.png`` (renders
+beside the input photos). The bundle appears whole or not at all (:func:`recon.publish.publish`): written in
 a hidden folder, which then takes the output folder's place in one step, or, where the
 output folder holds other files, is moved in once complete (a run killed meanwhile is
 completed by the next); a failed or interrupted run leaves the previous bundle as it was.
@@ -23,11 +23,9 @@ completed by the next); a failed or interrupted run leaves the previous bundle a
 
 from __future__ import annotations
 
-import hashlib
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -40,47 +38,17 @@ from .shape.calibrate import DEFAULT_IPD_MM
 from .texture.cameras import FittedCamera, check_view_cameras, fit_camera, fit_view_camera
 from .shape.fit import attach_photo_sizes, fit_head, fit_head_front, has_side, require_views
 from .publish import publish
+from .bundle import BuildResult, PhotoPair, _write_bundle
 from .detection import DETECTED_NAME, correction_hint, detect_for_build
 from .photos import (MAX_PHOTO_PIXELS, check_photo, photo_focal_px, photo_scale, photo_size, photos_focal_px,
                      read_photo, view_at_size)
 
-__all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "follow_side_outline", "run_build", "bundle_fdp",
-           "build_time", "preview_with_photos", "DEFAULT_TEXTURE_SIZE"]
+# PhotoPair and BuildResult live in recon.bundle (which writes them) and are re-exported here.
+__all__ = ["PhotoPair", "BuildResult", "load_pair", "build_head", "follow_side_outline", "run_build",
+           "DEFAULT_TEXTURE_SIZE"]
 
 #: Texture size (pixels, square) unless asked otherwise.
 DEFAULT_TEXTURE_SIZE = 2048
-
-@dataclass
-class PhotoPair:
-    """A front and a side photo with their annotations, or a front photo alone.
-
-    Attributes
-    ----------
-    front, side : (H, W, 3) uint8
-        ``side`` is None for a front photo alone.
-    fdp : mpeg4.io.fdp_json.FdpFile
-        With ``front`` and ``side`` views; their sizes and points match the photos as read.
-    paths : dict of str to str
-        ``front``, ``side`` and ``fdp`` as given (for provenance and errors).
-    scale : float
-        The photos' size as read over their size in the files (below 1 when they were over
-        :data:`recon.photos.MAX_PHOTO_PIXELS`); focal lengths in the files' pixels are
-        multiplied by it.
-    views : dict of str to ViewAnnotation, optional
-        The annotations as the file gives them, in the files' pixels (``fdp.views`` when
-        None); what the bundle records.
-    """
-
-    front: np.ndarray
-    side: np.ndarray | None
-    fdp: object
-    paths: dict[str, str] = field(default_factory=dict)
-    scale: float = 1.0
-    views: dict | None = None
-
-    @property
-    def given_views(self) -> dict:
-        return self.fdp.views if self.views is None else self.views
 
 
 def load_pair(fdp_path: str | os.PathLike, front: str | os.PathLike | None = None,
@@ -127,29 +95,6 @@ def load_pair(fdp_path: str | os.PathLike, front: str | os.PathLike | None = Non
             fdp.views[n] = view_at_size(fdp.views[n], im.shape[1], im.shape[0])
     paths["fdp"] = fdp_path
     return PhotoPair(images["front"], images.get("side"), fdp, paths, scale, given)
-
-
-@dataclass
-class BuildResult:
-    """A built head and what went into it.
-
-    Attributes
-    ----------
-    head : Head
-        Textured; ``metadata["build"]`` records the options and the fit.
-    cameras : dict of str to FittedCamera
-        Of the texture's photos (``front``, ``side``, ``mirrored``).
-    skin : recon.texture.SkinTexture
-    timings : dict of str to float
-        Seconds per step: ``shape``, ``texture``, ``atlas`` (with ``--atlas``), and from
-        :func:`run_build` also ``detection`` (when the points were detected), ``export``
-        (writing the bundle) and ``total`` (from the command's start).
-    """
-
-    head: Head
-    cameras: dict[str, FittedCamera]
-    skin: object
-    timings: dict[str, float]
 
 
 def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float = DEFAULT_IPD_MM,
@@ -349,109 +294,6 @@ def _build_front_only(pair: PhotoPair, focal_px, generic, ipd_mm, method, textur
     return _finish(head, skin, pair, cams, atlas, texture_size, keep_lighting, times, t0, t1, say)
 
 
-def _sha256(path: str) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("mpeg4-heads")
-    except PackageNotFoundError:
-        return "unknown"
-
-
-def build_time(created: str | None = None) -> str:
-    """The provenance time stamp: ``created`` if given, else ``SOURCE_DATE_EPOCH`` (seconds
-    since 1970, the reproducible-builds convention) if set, else now; ISO 8601, UTC."""
-    if created is not None:
-        return created
-    epoch = os.environ.get("SOURCE_DATE_EPOCH")
-    if epoch:
-        try:
-            t = int(epoch)
-        except ValueError:
-            raise InputError(f"SOURCE_DATE_EPOCH is {epoch!r}, not a whole number of seconds",
-                             where="environment", fix="set it to seconds since 1970-01-01 UTC, or unset it") from None
-    else:
-        t = time.time()
-    return time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(t))
-
-
-def bundle_fdp(head: Head, shape: PhotoPair, texture: PhotoPair | None, options: dict,
-               created: str | None = None, provenance: dict | None = None):
-    """The ``head.fdp.json`` of a build: 3D points, bindings, texture coordinates, FAPU, the
-    annotations of the shape's photos and the provenance (inputs with their SHA-256,
-    options, version, time: see :func:`build_time`; ``provenance`` adds entries)."""
-    from mpeg4.io import fdp_from_head
-
-    fdp = fdp_from_head(head)
-    fdp.views = shape.given_views
-    inputs = {"shape": {k: {"path": v, "sha256": _sha256(v)} for k, v in shape.paths.items()}}
-    if texture is not None:
-        inputs["texture"] = {k: {"path": v, "sha256": _sha256(v)} for k, v in texture.paths.items()}
-    meta = {k: v for k, v in fdp.metadata.items() if k not in ("duplicated_vertices",)}
-    meta["provenance"] = {"tool": "recon build", "version": _version(), "inputs": inputs, "options": options,
-                          "created": build_time(created), **(provenance or {})}
-    fdp.metadata = meta
-    return fdp
-
-
-def preview_with_photos(head: Head, pair: PhotoPair, size: int = 720) -> np.ndarray:
-    """(H, W, 3) uint8: the input photo(s), then the head's labelled front, side and
-    three-quarter renders, all ``size`` pixels high."""
-    import cv2
-
-    from mpeg4.preview import preview_image
-
-    sheet = preview_image(head, size=size)
-    photos = []
-    for im in (pair.front, pair.side) if pair.side is not None else (pair.front,):
-        h, w = im.shape[:2]
-        scale = size / h
-        small = cv2.resize(im, (max(1, round(w * scale)), size), interpolation=cv2.INTER_AREA)
-        photos.append(small)
-    strip = np.concatenate(photos, axis=1)
-    pad = np.full((sheet.shape[0] - size, strip.shape[1], 3), 255, np.uint8)
-    left = np.concatenate([strip, pad], axis=0)
-    cv2.putText(left, "input photos", (12, size + 30), cv2.FONT_HERSHEY_SIMPLEX, 0.7, (40, 40, 40), 1, cv2.LINE_AA)
-    return np.concatenate([left, sheet], axis=1)
-
-
-def _write_bundle(result: BuildResult, shape: PhotoPair, texture: PhotoPair | None, options: dict,
-                  folder: Path, say, created: str | None = None, provenance: dict | None = None) -> dict[str, Path]:
-    import cv2
-
-    from mpeg4.io import save_head, write_fdp_json
-    from mpeg4.io.obj import write_obj
-
-    head = result.head
-    paths = {"head": folder / "head.glb", "obj": folder / "head.obj", "mtl": folder / "head.mtl",
-             "texture": folder / "texture.png", "fdp": folder / "head.fdp.json", "preview": folder / "preview.png"}
-    say("writing head.glb")
-    save_head(head, paths["head"])
-    say("writing head.obj, head.mtl and the textures")
-    write_obj(head, paths["obj"], texture_names={"skin": "texture.png"})
-    paths.update({f"texture_{n}": folder / f"head_{n}.png" for n, p in head.parts.items()
-                  if p.texture is not None and n != "skin"})
-    fdp = bundle_fdp(head, shape, texture, options, created, provenance)
-    fdp.metadata["obj_parts"] = {n: {"centre": None if p.centre is None else p.centre.tolist()}
-                                 for n, p in head.parts.items()}
-    write_fdp_json(paths["fdp"], fdp)
-    say("rendering preview.png")
-    image = preview_with_photos(head, texture or shape)
-    ok, data = cv2.imencode(".png", np.ascontiguousarray(image[..., ::-1]))
-    if not ok:
-        raise RuntimeError("PNG encoding failed")
-    paths["preview"].write_bytes(data.tobytes())
-    return paths
-
-
 def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, fdp: str | os.PathLike | None,
               out_dir: str | os.PathLike, ipd_mm: float = DEFAULT_IPD_MM, focal_px: float | None = None,
               method: str = "dffd", texture_size: int = DEFAULT_TEXTURE_SIZE, atlas: bool = False,
@@ -490,7 +332,7 @@ def run_build(front: str | os.PathLike | None, side: str | os.PathLike | None, f
         If given, the :class:`BuildResult` is appended to it (for callers that go on with
         the head).
     created : str, optional
-        The provenance's time stamp (see :func:`build_time`; set it, or
+        The provenance's time stamp (see :func:`recon.bundle.build_time`; set it, or
         ``SOURCE_DATE_EPOCH``, for byte-identical ``head.fdp.json`` files across runs).
     provenance : dict, optional
         More entries for the provenance (``recon batch`` adds the manifest row).

@@ -112,7 +112,8 @@ def run_batch(manifest: str | os.PathLike, out_dir: str | os.PathLike, workers: 
     -------
     BatchReport
     """
-    from recon.build import DEFAULT_TEXTURE_SIZE, build_time
+    from recon.build import DEFAULT_TEXTURE_SIZE
+    from recon.bundle import build_time
     from recon.shape.calibrate import DEFAULT_IPD_MM
 
     t0 = time.perf_counter()

@@ -214,7 +214,7 @@ def build_person(row: ManifestRow, out_dir: str, defaults: dict, created: str | 
         ``ipd_mm``, ``focal_px``, ``method``, ``texture_size``, ``atlas`` for what the row
         leaves empty.
     created : str, optional
-        Time stamp for the bundle's provenance (:func:`recon.build.build_time`).
+        Time stamp for the bundle's provenance (:func:`recon.bundle.build_time`).
     clone_step : callable, optional
         ``clone_step(head, source) -> (head, warnings)`` for rows with a ``clone`` column
         (:func:`chain.animatable.clone_step`).
