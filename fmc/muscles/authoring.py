@@ -59,6 +59,13 @@ def _table(head: Head, n: int, samples: dict, unit: float, high_level: int = 0, 
 
 
 def _fp_motion(head: Head, moved: dict, neutral: dict, ids: list[str]) -> np.ndarray:
+    """(K, 3) motion of the feature points ``ids`` from ``neutral`` to ``moved``, metres.
+
+    Both states map part → (N, 3) vertices, as :meth:`MuscleRig.deform` gives them.
+    Not :func:`fmc.mesh_tables.fp_motion`: that takes a sparse displacement, and the
+    states' difference made into one rounds otherwise (within 1e-17 m), which the
+    contractions' scaling (:func:`_fit_muscles`) would carry into the tables.
+    """
     return np.array([head.fp_position(i, moved) - head.fp_position(i, neutral) for i in ids])
 
 
@@ -365,6 +372,8 @@ def _author_head_turn(rig: MuscleRig, fat: FAT, n: int, unit: float) -> FapFit:
 
 
 def _load_high_level() -> dict:
+    """:data:`HIGH_LEVEL_FAPS` read from ``fmc/data/high_level_faps.toml``; not
+    :func:`fmc.high_level._load_high_level`, which reads shapes' weights from another file."""
     data = tomllib.loads(resources.files("fmc").joinpath("data/high_level_faps.toml").read_text())
     out = {}
     for kind, fap in (("visemes", 1), ("expressions", 2)):
