@@ -163,6 +163,9 @@ def build_head(shape: PhotoPair, texture: PhotoPair | None = None, ipd_mm: float
             f"{height_tol_mm:g} mm: " + ", ".join(f"{i} ({d['disagreement_mm']:+.1f} mm, {d['view']} photo"
                                                f"{'s' if d['view'] == 'both' else ''})" for i, d in cal.dropped.items())
             + "; check them with recon annotate")
+    if cal.yaw_deg:
+        say(f"the face in the front photo is turned {abs(cal.yaw_deg):.0f} degrees to its "
+            f"{'left' if cal.yaw_deg > 0 else 'right'}: taken out using the side photo's depths")
     side_cam = None
     if follow_profile:
         head, side_cam = follow_side_outline(head, shape.fdp, shape.side, cal, focal(shape),

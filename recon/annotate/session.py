@@ -507,7 +507,8 @@ class AnnotationSession:
             self.fits += 1
         return {"glb": f"/api/head.glb?fit={self.fits}", "seconds": round(time.perf_counter() - t0, 3),
                 "points3d": {i: [round(float(c), 6) for c in p] for i, p in head.fp_positions().items()},
-                "sources": cal.source, "roll_deg": round(cal.roll_deg, 3), "assumptions": cal.assumptions,
+                "sources": cal.source, "roll_deg": round(cal.roll_deg, 3), "yaw_deg": round(cal.yaw_deg, 3),
+                "assumptions": cal.assumptions,
                 "height_residual_mm": {i: round(float(r), 2) for i, r in cal.height_residual_mm.items()},
                 "warning": warning, "bytes": len(self.glb)}
 

@@ -134,7 +134,7 @@ def fit_head(fdp, generic: Head | None = None, ipd_mm: float = DEFAULT_IPD_MM, f
     head = _settle_lids(deform_head(start, pinned, method=method), goal, lids)
     head.metadata = dict(head.metadata, fit=dict(
         cal.assumptions, start="identity model" if coefficients is not None else "generic head",
-        roll_deg=round(cal.roll_deg, 3), side_facing=cal.side_facing,
+        roll_deg=round(cal.roll_deg, 3), yaw_deg=round(cal.yaw_deg, 3), side_facing=cal.side_facing,
         visible_side=cal.visible_side, point_sources=cal.source,
         height_residual_mm={k: round(v, 3) for k, v in cal.height_residual_mm.items()}, dropped_points=cal.dropped,
         lids=_lids_built(head, lids)))

@@ -215,9 +215,10 @@ def neutral_lids(start: Head, goal: Mapping[str, np.ndarray], front: Mapping[str
 
     The heights come from the front photo's points rather than from the 3D points, whose
     inner eye corners (seen in the front photo alone) take their depth, and through the
-    perspective some of their height, from a model: on synthetic photos through a 100 mm
-    lens they are 2 mm off in height, a fifth of the lids' opening, while the photo's own
-    proportions are exact. The lid margins leave the goal: pinned as points they would
+    perspective some of their height, from a model (the generic head carried by the side
+    photo's depths: a few millimetres of depth, a few tenths of a millimetre of height
+    through a 100 mm lens, where the lids open 3 mm), while the photo's own proportions
+    are exact. The lid margins leave the goal: pinned as points they would
     still be pulled, alone, wherever their photo positions' small disagreements with the
     posed lid put them (into the eyeball, or into a notch in the margin); the deformation
     carries the posed lids with the eye's corners, the lid fold and the eyeball around them.
