@@ -56,8 +56,8 @@ from mpeg4.head import Head
 from mpeg4.render import RenderMesh, vertex_normals
 from mpeg4.unlit import render_unlit
 
-__all__ = ["Lighting", "MIN_SHADING", "MIN_MEAN_SHADING", "MAX_BURNT", "sh_basis", "normal_image", "decode_normals",
-           "skin_weight", "fit_mask", "fit_lighting", "judge", "delight_photo"]
+__all__ = ["Lighting", "MIN_SHADING", "MIN_MEAN_SHADING", "MAX_BURNT", "sh_basis", "normal_image",
+           "decode_normals", "skin_weight", "fit_mask", "fit_lighting", "judge", "delight_photo", "burnt_pixels"]
 
 #: Shading (share of its brightest) below which the division is not trusted and held.
 MIN_SHADING = 0.25
@@ -417,3 +417,29 @@ def delight_photo(head: Head, photo: np.ndarray, camera: Camera, mask: np.ndarra
     out = photo.copy()
     out[box] = albedo
     return out, light
+
+
+def burnt_pixels(photo: np.ndarray, albedo: np.ndarray, person: np.ndarray, grow_px: int = 2) -> np.ndarray:
+    """(H, W) bool: the person's pixels the de-lighting burnt out to white (as :func:`judge`
+    counts them: the albedo's largest channel saturated where the photo's was not), grown
+    by ``grow_px`` into the glow around them.
+
+    The fitted head's normals are the model's, not the person's: where a fitted neck
+    overhangs the photo's or the face turns from the camera, the shading divides skin seen
+    at a grazing angle by too little. A burnt pixel carries no colour; the caller fills it
+    from the skin around it as it fills what lies past the person's outline (left in, the
+    fill spread the white along the neck: a glowing band down a real profile's neck).
+
+    Parameters
+    ----------
+    photo, albedo : (H, W, 3) uint8
+        The photo and its de-lit version.
+    person : (H, W) bool
+        Where the photo shows the person's head.
+    grow_px : int
+    """
+    burnt = person & (albedo.max(axis=2) >= 254) & (photo.max(axis=2) < 250)
+    if grow_px > 0 and burnt.any():
+        k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * grow_px + 1, 2 * grow_px + 1))
+        burnt = person & (cv2.dilate(burnt.astype(np.uint8), k) > 0)
+    return burnt

@@ -330,7 +330,7 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
                 f"skin around them")
     lighting = {}
     if delight:
-        from .delight import delight_photo
+        from .delight import burnt_pixels, delight_photo
 
         say("taking the photos' lighting out (spherical-harmonic shading fit)")
         t = time.perf_counter()
@@ -338,6 +338,8 @@ def texture_skin(head: Head, front_photo: np.ndarray, side_photo: np.ndarray | N
             photos[key], lighting[key] = delight_photo(head, photo, cams[key].camera, skin_to_fit, normals[key])
             if lighting[key].fallback:
                 say(f"warning: the {key} photo keeps its light: {lighting[key].fallback}")
+            else:  # filled below as the backdrop is, not spread along the outline
+                head_masks[key] &= ~burnt_pixels(photo, photos[key], head_masks[key])
         times["delight"] = time.perf_counter() - t
 
     gain = np.ones(3)
