@@ -56,7 +56,7 @@ from mpeg4.head import Head
 from mpeg4.render import RenderMesh, vertex_normals
 from mpeg4.unlit import render_unlit
 
-__all__ = ["Lighting", "MIN_SHADING", "MIN_MEAN_SHADING", "MAX_BURNT", "sh_basis", "normal_image",
+__all__ = ["Lighting", "MIN_SHADING", "MIN_MEAN_SHADING", "MAX_BURNT", "EDGE_BAND", "sh_basis", "normal_image",
            "decode_normals", "skin_weight", "fit_mask", "fit_lighting", "judge", "delight_photo", "burnt_pixels"]
 
 #: Shading (share of its brightest) below which the division is not trusted and held.
@@ -67,6 +67,10 @@ MIN_SHADING = 0.25
 MIN_MEAN_SHADING = 0.3
 #: Largest share of the skin that de-lighting may burn out to white where the photo was not.
 MAX_BURNT = 0.02
+#: Width of the band inside the person's outline in which :func:`burnt_pixels` looks, as a
+#: share of the outline's bounding box's smaller side (the neck's overhang is a few
+#: percent of the head).
+EDGE_BAND = 0.06
 
 _LUMA = np.array([0.299, 0.587, 0.114])
 _DECODE = (np.arange(256, dtype=np.float32) / np.float32(127.5) - np.float32(1.0)).reshape(1, 256)  # byte → n
@@ -419,16 +423,19 @@ def delight_photo(head: Head, photo: np.ndarray, camera: Camera, mask: np.ndarra
     return out, light
 
 
-def burnt_pixels(photo: np.ndarray, albedo: np.ndarray, person: np.ndarray, grow_px: int = 2) -> np.ndarray:
-    """(H, W) bool: the person's pixels the de-lighting burnt out to white (as :func:`judge`
-    counts them: the albedo's largest channel saturated where the photo's was not), grown
-    by ``grow_px`` into the glow around them.
+def burnt_pixels(photo: np.ndarray, albedo: np.ndarray, person: np.ndarray, band: float = EDGE_BAND,
+                 grow_px: int = 2) -> np.ndarray:
+    """(H, W) bool: the pixels along the person's outline that the de-lighting burnt out to
+    white (as :func:`judge` counts them: the albedo's largest channel saturated where the
+    photo's was not), grown by ``grow_px`` into the glow around them.
 
     The fitted head's normals are the model's, not the person's: where a fitted neck
-    overhangs the photo's or the face turns from the camera, the shading divides skin seen
-    at a grazing angle by too little. A burnt pixel carries no colour; the caller fills it
-    from the skin around it as it fills what lies past the person's outline (left in, the
-    fill spread the white along the neck: a glowing band down a real profile's neck).
+    overhangs the photo's, the shading divides skin seen at a grazing angle, or the wall
+    beside it, by too little. The texture's fill beyond the outline then spread that white
+    along the neck (a real profile: a glowing band down the back of the neck), so the
+    caller fills these from the skin further in, as it fills what lies past the outline.
+    Inside the face a burnt pixel is left as it is (a highlight: filling those changed the
+    skin model a front photo alone paints the head's sides with, and its colour).
 
     Parameters
     ----------
@@ -436,9 +443,18 @@ def burnt_pixels(photo: np.ndarray, albedo: np.ndarray, person: np.ndarray, grow
         The photo and its de-lit version.
     person : (H, W) bool
         Where the photo shows the person's head.
+    band : float
+        Width of the band inside the outline looked at, as a share of the outline's
+        bounding box's smaller side (:data:`EDGE_BAND`).
     grow_px : int
     """
     burnt = person & (albedo.max(axis=2) >= 254) & (photo.max(axis=2) < 250)
+    if not burnt.any():
+        return burnt
+    _, _, bw, bh = cv2.boundingRect(person.astype(np.uint8))
+    r = max(1, int(round(band * min(bw, bh))))
+    inner = cv2.erode(person.astype(np.uint8), cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
+    burnt &= inner == 0
     if grow_px > 0 and burnt.any():
         k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * grow_px + 1, 2 * grow_px + 1))
         burnt = person & (cv2.dilate(burnt.astype(np.uint8), k) > 0)

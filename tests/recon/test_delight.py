@@ -151,20 +151,22 @@ def test_relighting_the_albedo_gives_back_the_photo_s_skin_tone():
     assert relit(albedo, SimpleNamespace(fallback=None, shading=lit.shading[1:])) is None
 
 
-def test_burnt_pixels_are_the_ones_de_lighting_burnt_not_the_photo_s_whites():
-    """A de-lit pixel saturated where the photo was not is burnt (grown by two pixels into
-    its glow, within the person); a white the photo itself shows (a shirt's stripe) and
-    whatever lies outside the person are not."""
+def test_burnt_pixels_are_the_ones_de_lighting_burnt_at_the_outline():
+    """A de-lit pixel near the person's outline saturated where the photo was not is burnt
+    (grown by two pixels into its glow, within the person); a white the photo itself shows
+    (a shirt's stripe), a highlight inside the face and whatever lies outside the person
+    are not."""
     from recon.texture.delight import burnt_pixels
 
-    photo = np.full((40, 60, 3), 120, np.uint8)
+    photo = np.full((400, 600, 3), 120, np.uint8)
     albedo = photo.copy()
-    person = np.zeros((40, 60), bool)
-    person[5:35, 5:45] = True
-    albedo[20, 10] = 255            # burnt: the photo's 120 divided by too little
-    photo[10, 30] = albedo[10, 30] = 255  # white in the photo: kept
-    albedo[20, 50] = 255            # outside the person
+    person = np.zeros((400, 600), bool)
+    person[50:350, 50:450] = True
+    albedo[200, 60] = 255             # burnt at the outline: the photo's 120 divided by too little
+    photo[60, 300] = albedo[60, 300] = 255  # white in the photo: kept
+    albedo[200, 250] = 255            # a highlight inside: left
+    albedo[200, 500] = 255            # outside the person
     burnt = burnt_pixels(photo, albedo, person)
-    assert burnt[20, 10] and burnt[20, 12] and burnt[18, 10] and not burnt[20, 13]
-    assert not burnt[10, 30] and not burnt[20, 50]
-    assert burnt[18:23, 8:13].sum() == burnt.sum() >= 13  # within two pixels of it
+    assert burnt[200, 60] and burnt[200, 62] and burnt[198, 60] and not burnt[200, 63]
+    assert not burnt[60, 300] and not burnt[200, 250] and not burnt[200, 500]
+    assert burnt[198:203, 58:63].sum() == burnt.sum() >= 13  # within two pixels of it
