@@ -7,6 +7,8 @@ import cv2
 from mpeg4.io import load_head
 from chain.example import run_example
 
+EXAMPLE = __import__("pathlib").Path(__file__).resolve().parents[2] / "data" / "example"
+
 
 def test_example_writes_a_valid_head_fdp_and_preview(tmp_path, validate_gltf):
     import shutil
@@ -24,7 +26,13 @@ def test_example_writes_a_valid_head_fdp_and_preview(tmp_path, validate_gltf):
 
     generic = load_generic_head()
     ipd = lambda h: float(((h.fp_position("3.5") - h.fp_position("3.6")) ** 2).sum() ** 0.5)  # noqa: E731
-    assert abs(ipd(head) - ipd(generic)) > 0.002
+    # Its eyes as far apart as the photos' person's (69.16 mm; the generic head's: 67.21).
+    person_ipd = 1e-3 * json.loads((EXAMPLE / "example.fdp.json").read_text())["metadata"]["synthetic"]["ipd_mm"]
+    assert abs(ipd(head) - person_ipd) < 0.0005 < 0.0015 < abs(ipd(generic) - person_ipd)
+    from scipy.spatial import cKDTree
+
+    apart, _ = cKDTree(head.skin.vertices).query(generic.skin.vertices)  # the skin's seams split it
+    assert float(apart.mean()) > 0.002  # the shape, not the generic head's
     assert head.skin.texture is not None and head.skin.texture.shape[:2] == (1024, 1024)
     assert head.skin.uv is not None and paths["texture"].exists() and paths["obj"].exists()
     assert len(head.fat) == 66 + 15 + 7  # every low-level FAP, the visemes and the expressions
