@@ -517,8 +517,11 @@ def front_turn(x: Mapping[str, float], z: Mapping[str, float], weight: Mapping[s
         elif fp.side == "L" and fp.mirror in x and i in z and fp.mirror in z:
             rows.append((0.5 * (v + x[fp.mirror]), 0.5 * (z[i] + z[fp.mirror]),
                          min(weight.get(i, 1.0), weight.get(fp.mirror, 1.0))))
-    if not rows:
-        return 0.0, 0.0
+    if not rows:  # no depths for the core: the midline from every point, unturned
+        mids = [v for i, v in x.items() if FEATURE_POINTS[i].side == "C"]
+        mids += [0.5 * (v + x[FEATURE_POINTS[i].mirror]) for i, v in x.items()
+                 if FEATURE_POINTS[i].side == "L" and FEATURE_POINTS[i].mirror in x]
+        return 0.0, float(np.mean(mids)) if mids else 0.0
     m, d, w = (np.array(c, dtype=np.float64) for c in zip(*rows))
     w = np.clip(w, 1e-3, None)
     if len(rows) < 4 or np.ptp(d) < 0.03:

@@ -349,3 +349,11 @@ def test_real_front_photos_are_read_turned_as_the_face_mesh_sees_them(person):
     assert np.sign(seen) == -np.sign(cal.yaw_deg), (seen, cal.yaw_deg)
     ears = cal.points["10.9"][0] + cal.points["10.10"][0]
     assert abs(ears) < 0.015, ears
+
+
+def test_the_turn_without_depths_keeps_the_midline():
+    """No core point with a depth: no turn, the midline still the points' middle."""
+    from recon.shape.calibrate import front_turn
+
+    x = {"9.3": 0.012, "10.9": 0.08, "10.10": -0.05}
+    assert front_turn(x, {}) == (0.0, pytest.approx((0.012 + 0.015) / 2))
