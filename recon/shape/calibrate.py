@@ -34,8 +34,8 @@ from mpeg4.head import Head
 from .deform import bounding_controls, dffd, fit_similarity
 from .hair import skull_normals, skull_under
 
-__all__ = ["DEFAULT_IPD_MM", "CORE_GROUPS", "TURN_NOISE_DEG", "is_core", "Calibration", "HeightsDisagree", "calibrate",
-           "front_turn"]
+__all__ = ["DEFAULT_IPD_MM", "CORE_GROUPS", "TURN_NOISE_DEG", "MAX_TURN_DEG", "is_core", "Calibration",
+           "HeightsDisagree", "calibrate", "front_turn"]
 
 #: Adult mean interpupillary distance (mm) used when the user gives none.
 DEFAULT_IPD_MM = 63.0
@@ -387,6 +387,8 @@ def _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, he
     # (The perspective branch takes the turn out as it goes.)
     if focal_px is None:
         sin_yaw, x0 = front_turn(X, Z, {i: confidence["front"].get(i, 1.0) for i in X})
+        if abs(sin_yaw) > np.sin(np.radians(MAX_TURN_DEG)):
+            raise _too_turned(sin_yaw)
         z_of = _depths(X, Z, generic)
         X = {i: v - x0 - sin_yaw * z_of[i] for i, v in X.items()}
         cos_yaw = float(np.sqrt(1.0 - sin_yaw ** 2))
@@ -469,6 +471,18 @@ def _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, he
 #: made the points' x worse (0.25 -> 0.61 mm mean on five). Beyond it the turn is taken
 #: out in a ramp, fully from twice as far (continuous, so no threshold decides a head).
 TURN_NOISE_DEG = 3.0
+#: A front photo turned further than this (degrees) is refused: the far side of the face
+#: hides behind the nose, and its points are guesses (the detection refuses such photos
+#: too; this holds for points given by hand).
+MAX_TURN_DEG = 30.0
+
+
+def _too_turned(sin_yaw: float) -> InputError:
+    deg = float(np.degrees(np.arcsin(sin_yaw)))
+    return InputError(f"the face in the front photo is turned {abs(deg):.0f} degrees to its "
+                      f"{'left' if deg > 0 else 'right'} (more than {MAX_TURN_DEG:g})", where="front view",
+                      fix="take the front photo with the face looking into the camera, or check the points of "
+                          "the face's midline and of its eyes and mouth in both photos")
 
 
 def front_turn(x: Mapping[str, float], z: Mapping[str, float], weight: Mapping[str, float] | None = None,
@@ -635,6 +649,8 @@ def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, 
         turned = {i: r[0] * (dist_f - zc[i]) for i, r in rf.items()}
         Yf = {i: -r[1] * (dist_f - zc[i]) for i, r in rf.items()}
         sin_yaw, x0 = front_turn(turned, seen, front_weight)
+        if abs(sin_yaw) > np.sin(np.radians(MAX_TURN_DEG)):
+            raise _too_turned(sin_yaw)
         X = {i: (v - x0 - sin_yaw * z_of[i]) / np.sqrt(1.0 - sin_yaw ** 2) for i, v in turned.items()}
         x.update(X)
 

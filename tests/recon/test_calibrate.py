@@ -357,3 +357,19 @@ def test_the_turn_without_depths_keeps_the_midline():
 
     x = {"9.3": 0.012, "10.9": 0.08, "10.10": -0.05}
     assert front_turn(x, {}) == (0.0, pytest.approx((0.012 + 0.015) / 2))
+
+
+def test_a_front_photo_turned_too_far_is_refused(scene):
+    """Turned past MAX_TURN_DEG the far side hides behind the nose: an error naming the
+    turn and the fix, in both camera models."""
+    from recon.shape.calibrate import MAX_TURN_DEG
+
+    generic, truth = scene
+    ipd = np.linalg.norm(truth["3.5"] - truth["3.6"]) * 1000
+    with pytest.raises(InputError, match=r"front view: the face in the front photo is turned 4\d degrees to its right"):
+        calibrate(_front(truth, yaw_deg=-(MAX_TURN_DEG + 12)), _side(truth), generic, ipd_mm=ipd)
+    with pytest.raises(InputError, match="looking into the camera"):
+        calibrate(_front(truth, f=2400.0, yaw_deg=MAX_TURN_DEG + 12), _side(truth, f=2400.0), generic, ipd_mm=ipd,
+                  focal_px=2400.0, front_size=(1000, 1200), side_size=(900, 1000))
+    assert abs(calibrate(_front(truth, yaw_deg=MAX_TURN_DEG - 5), _side(truth), generic, ipd_mm=ipd).yaw_deg
+               - (MAX_TURN_DEG - 5)) < 1e-6
