@@ -381,12 +381,15 @@ def _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, he
     else:
         X, Yf, Z, Ys, resid, scales, sin_yaw = _perspective(
             front, side_any, generic, ipd, focal_px, front_size, side_size, roll, facing, visible, shared,
-            _weights(shared, label, confidence), {i: confidence["front"].get(i, 1.0) for i in front})
+            _weights(shared, label, confidence))
     # The front photo's turn: x seen there is x + z sin(yaw) + c, and every length is too
     # long by 1 / cos(yaw) (the pupils look closer together than the IPD given).
     # (The perspective branch takes the turn out as it goes.)
     if focal_px is None:
-        sin_yaw, x0 = front_turn(X, Z, {i: confidence["front"].get(i, 1.0) for i in X})
+        # Unweighted by the points' confidences: they speak of where a point lies, not of
+        # the midline; a point placed by hand (confidence 1) among the generic head's
+        # guesses (0) held a turn of 64 degrees alone.
+        sin_yaw, x0 = front_turn(X, Z)
         if abs(sin_yaw) > np.sin(np.radians(MAX_TURN_DEG)):
             raise _too_turned(sin_yaw)
         z_of = _depths(X, Z, generic)
@@ -618,8 +621,7 @@ def _fit_heights(shared, Yf, side_any, w):
     return a, c, b, {i: float(a * side_any[i][1] + c * side_any[i][0] + b - Yf[i]) for i in shared}
 
 
-def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, facing, visible, shared, w,
-                 front_weight):
+def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, facing, visible, shared, w):
     """Alternate between the views with pinhole cameras; returns the same pieces as the
     orthographic branch (X, Yf, Z, Ys, residuals, scales) and the front photo's turn
     (sine, :func:`front_turn`), taken out of X at each round."""
@@ -648,7 +650,7 @@ def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, 
                   + rf["3.5"][0] * zc["3.5"] - rf["3.6"][0] * zc["3.6"]) / (rf["3.5"][0] - rf["3.6"][0])
         turned = {i: r[0] * (dist_f - zc[i]) for i, r in rf.items()}
         Yf = {i: -r[1] * (dist_f - zc[i]) for i, r in rf.items()}
-        sin_yaw, x0 = front_turn(turned, seen, front_weight)
+        sin_yaw, x0 = front_turn(turned, seen)
         if abs(sin_yaw) > np.sin(np.radians(MAX_TURN_DEG)):
             raise _too_turned(sin_yaw)
         X = {i: (v - x0 - sin_yaw * z_of[i]) / np.sqrt(1.0 - sin_yaw ** 2) for i, v in turned.items()}

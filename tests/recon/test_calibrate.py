@@ -373,3 +373,34 @@ def test_a_front_photo_turned_too_far_is_refused(scene):
                   focal_px=2400.0, front_size=(1000, 1200), side_size=(900, 1000))
     assert abs(calibrate(_front(truth, yaw_deg=MAX_TURN_DEG - 5), _side(truth), generic, ipd_mm=ipd).yaw_deg
                - (MAX_TURN_DEG - 5)) < 1e-6
+
+
+def test_one_moved_nose_does_not_turn_a_symmetric_head():
+    """Every other point exact (the annotate page starts from the generic head's, which
+    are symmetric): the nose tip dragged 8 mm sideways turns the midline by under a
+    degree (the robust weights leave it out)."""
+    from recon.shape.calibrate import front_turn
+
+    pairs = [("3.5", "3.6", 0.08), ("3.7", "3.12", 0.07), ("3.11", "3.8", 0.085), ("8.3", "8.4", 0.09),
+             ("9.1", "9.2", 0.10), ("3.1", "3.2", 0.085)]
+    x, z = {}, {}
+    for left, right, depth in pairs:
+        x[left], x[right], z[left], z[right] = 0.03, -0.03, depth, depth
+    for i, depth in (("2.1", 0.10), ("9.15", 0.11), ("8.1", 0.11), ("8.2", 0.105), ("2.2", 0.105)):
+        x[i], z[i] = 0.0, depth
+    x["9.3"], z["9.3"] = 0.008, 0.14
+    sin_yaw, _ = front_turn(x, z, noise_deg=0.0)
+    assert abs(np.degrees(np.arcsin(sin_yaw))) < 1.0
+
+
+def test_a_point_placed_by_hand_among_guesses_does_not_turn_the_head(scene):
+    """The annotate page starts from the generic head's points, guesses of confidence 0;
+    the nose tip dragged by hand (confidence 1) 20 mm sideways once held a turn of 64
+    degrees alone (the turn was weighted by the confidences)."""
+    generic, truth = scene
+    ipd = np.linalg.norm(truth["3.5"] - truth["3.6"]) * 1000
+    front, side = _front(truth), _side(truth)
+    front["9.3"] = front["9.3"] + [0.020 * 4000, 0.0]
+    guesses = {"front": {i: 0.0 for i in front if i != "9.3"}, "side": {i: 0.0 for i in side}}
+    cal = calibrate(front, side, generic, ipd_mm=ipd, confidence=guesses, height_tol_mm=float("inf"))
+    assert cal.yaw_deg == 0.0
