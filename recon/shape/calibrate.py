@@ -5,7 +5,7 @@ common height scale by the points marked in both (their heights must agree: a st
 line maps side-photo rows to front-photo heights), a small head roll in the front photo is
 removed using the pupils, a turn of the head in the front photo (booking photos and
 selfies are often turned 5-20 degrees) is taken out using the side photo's depths
-(:func:`front_turn`), and the absolute size comes from the user's interpupillary
+(:mod:`recon.shape.turn`), and the absolute size comes from the user's interpupillary
 distance (photos carry none). The side photo may face either way; which side of the face
 it shows is read from its labels and mirrored to the other side. Points one view cannot
 show take their missing coordinate from the generic head carried by the same free-form
@@ -31,11 +31,12 @@ from mpeg4.catalogue import FEATURE_POINTS, FP_IDS, check_fp_id
 from mpeg4.errors import InputError
 from mpeg4.head import Head
 
+from .core_points import CORE_GROUPS, is_core
 from .deform import bounding_controls, dffd, fit_similarity
 from .hair import skull_normals, skull_under
+from .turn import MAX_TURN_DEG, front_turn, generic_depths, too_turned
 
-__all__ = ["DEFAULT_IPD_MM", "CORE_GROUPS", "TURN_NOISE_DEG", "MAX_TURN_DEG", "is_core", "Calibration",
-           "HeightsDisagree", "calibrate", "front_turn"]
+__all__ = ["DEFAULT_IPD_MM", "CORE_GROUPS", "is_core", "Calibration", "HeightsDisagree", "calibrate"]
 
 #: Adult mean interpupillary distance (mm) used when the user gives none.
 DEFAULT_IPD_MM = 63.0
@@ -63,7 +64,7 @@ class Calibration:
         Head roll removed from the front photo (positive: the face's left eye was higher).
     yaw_deg : float
         Head turn removed from the front photo (positive: the face turned towards its own
-        left, the image's right), see :func:`front_turn`.
+        left, the image's right), see :func:`recon.shape.turn.front_turn`.
     metres_per_px : dict
         ``front`` and ``side`` scales (orthographic; at the pupils' depth in perspective).
     side_facing : {"left", "right"}
@@ -90,20 +91,6 @@ class Calibration:
     assumptions: dict = field(default_factory=dict)
     dropped: dict[str, dict] = field(default_factory=dict)
     yaw_deg: float = 0.0
-
-
-#: The face's core: eyes, nose, mouth and chin (groups 3, 8, 9 and 2.1-2.10; the jaw's
-#: contour 2.11-2.14 is not: the side photo shows it under the ear and the hair). Their
-#: heights are found by the face mesh on both photos; when they disagree the photos or
-#: the cameras are wrong, and dropping points would hide it.
-CORE_GROUPS = (2, 3, 8, 9)
-_NOT_CORE = ("2.11", "2.12", "2.13", "2.14")
-
-
-def is_core(fp_id: str) -> bool:
-    """Whether a point belongs to the face's core (eyes, nose, mouth, chin), which an
-    automatic route never leaves out."""
-    return FEATURE_POINTS[fp_id].group in CORE_GROUPS and fp_id not in _NOT_CORE
 
 
 class HeightsDisagree(InputError):
@@ -391,8 +378,8 @@ def _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, he
         # guesses (0) held a turn of 64 degrees alone.
         sin_yaw, x0 = front_turn(X, Z)
         if abs(sin_yaw) > np.sin(np.radians(MAX_TURN_DEG)):
-            raise _too_turned(sin_yaw)
-        z_of = _depths(X, Z, generic)
+            raise too_turned(sin_yaw)
+        z_of = generic_depths(X, Z, generic)
         X = {i: v - x0 - sin_yaw * z_of[i] for i, v in X.items()}
         cos_yaw = float(np.sqrt(1.0 - sin_yaw ** 2))
         Yf, Z, Ys = ({i: v * cos_yaw for i, v in d.items()} for d in (Yf, Z, Ys))
@@ -467,111 +454,6 @@ def _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, he
                          height_tol_mm=float(height_tol_mm) if np.isfinite(height_tol_mm) else None))
 
 
-#: Turns of the front photo (degrees) within which the face is taken as photographed from
-#: the front: a face's own asymmetry drifts its midline with depth too. On twelve
-#: synthetic people photographed exactly from the front (ICT FaceKit identities, scans of
-#: real faces) the drift read as turns of -2.4 to +1.2 degrees (sd 1.1), and taking them out
-#: made the points' x worse (0.25 -> 0.61 mm mean on five). Beyond it the turn is taken
-#: out in a ramp, fully from twice as far (continuous, so no threshold decides a head).
-TURN_NOISE_DEG = 3.0
-#: A front photo turned further than this (degrees) is refused: the far side of the face
-#: hides behind the nose, and its points are guesses (the detection refuses such photos
-#: too; this holds for points given by hand).
-MAX_TURN_DEG = 30.0
-
-
-def _too_turned(sin_yaw: float) -> InputError:
-    deg = float(np.degrees(np.arcsin(sin_yaw)))
-    return InputError(f"the face in the front photo is turned {abs(deg):.0f} degrees to its "
-                      f"{'left' if deg > 0 else 'right'} (more than {MAX_TURN_DEG:g})", where="front view",
-                      fix="take the front photo with the face looking into the camera, or check the points of "
-                          "the face's midline and of its eyes and mouth in both photos")
-
-
-def front_turn(x: Mapping[str, float], z: Mapping[str, float], weight: Mapping[str, float] | None = None,
-               noise_deg: float = TURN_NOISE_DEG) -> tuple[float, float]:
-    """The head's turn in the front photo, from where its midline lies there at each depth.
-
-    A face turned by ``yaw`` about the vertical shows a point at ``x cos(yaw) + z sin(yaw)``
-    across the photo: the midline's points and the middles of mirrored pairs (x = 0) lie
-    on a line ``x0 + z sin(yaw)`` against their depth, which the side photo gives. Only the
-    face's core points count (:func:`is_core`: eyes, nose, mouth, chin; the face mesh
-    places them within a millimetre or two of each other): the skull's outline is the
-    hair's, which need not be centred on the skull (on one real pair the top of the hair
-    held a 12 degree turn to 1), and the ears are often guessed. The line is fitted
-    robustly (Huber weights at 1.5 times the residuals' scale), so that one point placed
-    on the cheek does not turn the head.
-
-    Parameters
-    ----------
-    x : mapping of FP id to float
-        Positions across the front photo, metres (scaled by the pupils, centre anywhere).
-    z : mapping of FP id to float
-        Depths, metres (+z towards the front camera), for the same ids.
-    weight : mapping of FP id to float, optional
-        Each point's confidence (default 1).
-    noise_deg : float
-        Turns read within it are not taken out; from ``noise_deg`` to twice it, taken out
-        in a linear ramp (:data:`TURN_NOISE_DEG`).
-
-    Returns
-    -------
-    sin_yaw : float
-        The turn to take out: positive when the face turned towards its own left (the
-        image's right); 0 when the points' depths span less than 3 cm or fewer than four
-        lines of evidence exist.
-    x0 : float
-        Where the midline crosses depth 0 with that turn, metres.
-    """
-    weight = weight or {}
-    rows = []  # (x of the midline, z, weight)
-    for i, v in x.items():
-        fp = FEATURE_POINTS[i]
-        if not is_core(i):
-            continue
-        if fp.side == "C" and i in z:
-            rows.append((v, z[i], weight.get(i, 1.0)))
-        elif fp.side == "L" and fp.mirror in x and i in z and fp.mirror in z:
-            rows.append((0.5 * (v + x[fp.mirror]), 0.5 * (z[i] + z[fp.mirror]),
-                         min(weight.get(i, 1.0), weight.get(fp.mirror, 1.0))))
-    if not rows:  # no depths for the core: the midline from every point, unturned
-        mids = [v for i, v in x.items() if FEATURE_POINTS[i].side == "C"]
-        mids += [0.5 * (v + x[FEATURE_POINTS[i].mirror]) for i, v in x.items()
-                 if FEATURE_POINTS[i].side == "L" and FEATURE_POINTS[i].mirror in x]
-        return 0.0, float(np.mean(mids)) if mids else 0.0
-    m, d, w = (np.array(c, dtype=np.float64) for c in zip(*rows))
-    w = np.clip(w, 1e-3, None)
-    if len(rows) < 4 or np.ptp(d) < 0.03:
-        return 0.0, float(np.average(m, weights=w))
-    A = np.c_[np.ones_like(d), d]
-    h = w.copy()
-    for _ in range(20):
-        (x0, slope), *_ = np.linalg.lstsq(A * np.sqrt(h)[:, None], m * np.sqrt(h), rcond=None)
-        r = m - A @ [x0, slope]
-        scale = 1.4826 * np.median(np.abs(r))
-        if scale < 1e-9:
-            break
-        h = w * np.minimum(1.0, 1.5 * scale / np.maximum(np.abs(r), 1e-12))
-    deg = np.degrees(np.arcsin(np.clip(slope, -0.9, 0.9)))
-    taken = deg * np.clip((abs(deg) - noise_deg) / max(noise_deg, 1e-9), 0.0, 1.0)
-    sin_yaw = float(np.sin(np.radians(taken)))
-    return sin_yaw, float(np.average(m - sin_yaw * d, weights=h))
-
-
-def _depths(x: Mapping[str, float], z: Mapping[str, float], generic: Head) -> dict[str, float]:
-    """A depth for each id of ``x``: the side photo's, else its mirror partner's, else the
-    generic head's shifted to the side photo's depths (a point the side photo cannot give
-    only needs its depth roughly, for the turn's share of its x)."""
-    g = {i: float(generic.fp_position(i)[2]) for i in generic.feature_points}
-    both = [i for i in z if i in g]
-    shift = float(np.mean([z[i] - g[i] for i in both])) if both else 0.0
-    out = {}
-    for i in x:
-        m = FEATURE_POINTS[i].mirror
-        out[i] = z[i] if i in z else z[m] if m in z else g.get(i, g.get(m, shift) - shift) + shift
-    return out
-
-
 def _generic_guess(g: dict, full: list, known: np.ndarray) -> dict:
     """Where the generic head's points go when its complete points move to ``known``.
 
@@ -624,7 +506,7 @@ def _fit_heights(shared, Yf, side_any, w):
 def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, facing, visible, shared, w):
     """Alternate between the views with pinhole cameras; returns the same pieces as the
     orthographic branch (X, Yf, Z, Ys, residuals, scales) and the front photo's turn
-    (sine, :func:`front_turn`), taken out of X at each round."""
+    (sine, :func:`recon.shape.turn.front_turn`), taken out of X at each round."""
     cf = (np.array(front_size, float) - 1) / 2
     cs = (np.array(side_size, float) - 1) / 2
     c, s = np.cos(roll), np.sin(roll)
@@ -643,7 +525,7 @@ def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, 
         # offset), depth z' = z cos - x sin; a point at depth z' is dist_f - z' away.
         cos_yaw = np.sqrt(1.0 - sin_yaw ** 2)
         seen = {i: v for i, v in z.items() if i in rs}  # depth 0 in the first round
-        z_of = _depths(rf, seen, generic)
+        z_of = generic_depths(rf, seen, generic)
         zc = {i: z_of[i] * cos_yaw - x[i] * sin_yaw for i in rf}
         # The pupils are ipd apart: x'_L - x'_R = ipd cos + (z_L - z_R) sin.
         dist_f = (ipd * cos_yaw + (z_of["3.5"] - z_of["3.6"]) * sin_yaw
@@ -652,7 +534,7 @@ def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, 
         Yf = {i: -r[1] * (dist_f - zc[i]) for i, r in rf.items()}
         sin_yaw, x0 = front_turn(turned, seen)
         if abs(sin_yaw) > np.sin(np.radians(MAX_TURN_DEG)):
-            raise _too_turned(sin_yaw)
+            raise too_turned(sin_yaw)
         X = {i: (v - x0 - sin_yaw * z_of[i]) / np.sqrt(1.0 - sin_yaw ** 2) for i, v in turned.items()}
         x.update(X)
 

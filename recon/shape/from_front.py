@@ -34,7 +34,8 @@ from mpeg4.head import Head
 
 from recon.photos import FILM_DIAGONAL_MM
 
-from .calibrate import DEFAULT_IPD_MM, is_core
+from .calibrate import DEFAULT_IPD_MM
+from .core_points import is_core
 from .identity import POINT_SD_MM, IdentityModel, load_identity_model
 
 __all__ = ["FrontFit", "fit_front", "FOCAL_35MM_CANDIDATES", "OUTLIER_SDS"]

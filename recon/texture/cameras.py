@@ -176,7 +176,7 @@ def fit_view_camera(points3d: Mapping[str, np.ndarray], view, name: str, focal_p
     unless it is one of the face's core points, said (``say``) and listed in ``cal.dropped``.
     """
     from mpeg4.catalogue import FEATURE_POINTS
-    from recon.shape.calibrate import is_core
+    from recon.shape.core_points import is_core
 
     gone = {i for i, d in cal.dropped.items() if d["view"] in (name, "both")}
     own = {(FEATURE_POINTS[i].mirror or i) if name == "side" and i not in view.points else i for i in gone}

@@ -296,7 +296,7 @@ def test_a_turned_front_photo_gives_the_upright_head(scene, yaw):
 def test_a_small_turn_is_taken_for_the_face_s_own_asymmetry(scene):
     """Faces are not symmetric: their midline drifts with depth as a turn of 1-2 degrees
     would. Within TURN_NOISE_DEG nothing is taken out, then a ramp, all from twice it."""
-    from recon.shape.calibrate import TURN_NOISE_DEG
+    from recon.shape.turn import TURN_NOISE_DEG
 
     generic, truth = scene
     ipd = np.linalg.norm(truth["3.5"] - truth["3.6"]) * 1000
@@ -336,7 +336,7 @@ def test_real_front_photos_are_read_turned_as_the_face_mesh_sees_them(person):
     from recon.landmarks import detect
     from recon.landmarks.roles import turn
     from recon.photos import read_photo
-    from recon.shape.calibrate import TURN_NOISE_DEG
+    from recon.shape.turn import TURN_NOISE_DEG
 
     fdp = detect(PAIRS / person / "front.jpg", PAIRS / person / "side.jpg")
     v = fdp.views
@@ -353,7 +353,7 @@ def test_real_front_photos_are_read_turned_as_the_face_mesh_sees_them(person):
 
 def test_the_turn_without_depths_keeps_the_midline():
     """No core point with a depth: no turn, the midline still the points' middle."""
-    from recon.shape.calibrate import front_turn
+    from recon.shape.turn import front_turn
 
     x = {"9.3": 0.012, "10.9": 0.08, "10.10": -0.05}
     assert front_turn(x, {}) == (0.0, pytest.approx((0.012 + 0.015) / 2))
@@ -362,7 +362,7 @@ def test_the_turn_without_depths_keeps_the_midline():
 def test_a_front_photo_turned_too_far_is_refused(scene):
     """Turned past MAX_TURN_DEG the far side hides behind the nose: an error naming the
     turn and the fix, in both camera models."""
-    from recon.shape.calibrate import MAX_TURN_DEG
+    from recon.shape.turn import MAX_TURN_DEG
 
     generic, truth = scene
     ipd = np.linalg.norm(truth["3.5"] - truth["3.6"]) * 1000
@@ -379,7 +379,7 @@ def test_one_moved_nose_does_not_turn_a_symmetric_head():
     """Every other point exact (the annotate page starts from the generic head's, which
     are symmetric): the nose tip dragged 8 mm sideways turns the midline by under a
     degree (the robust weights leave it out)."""
-    from recon.shape.calibrate import front_turn
+    from recon.shape.turn import front_turn
 
     pairs = [("3.5", "3.6", 0.08), ("3.7", "3.12", 0.07), ("3.11", "3.8", 0.085), ("8.3", "8.4", 0.09),
              ("9.1", "9.2", 0.10), ("3.1", "3.2", 0.085)]
