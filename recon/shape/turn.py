@@ -66,7 +66,9 @@ def front_turn(x: Mapping[str, float], z: Mapping[str, float], weight: Mapping[s
     z : mapping of FP id to float
         Depths, metres (+z towards the front camera), for the same ids.
     weight : mapping of FP id to float, optional
-        Each point's confidence (default 1).
+        Each point's weight (default 1). :func:`recon.shape.calibrate.calibrate` gives
+        none: confidences speak of where a point lies, not of the midline, and a point
+        placed by hand (1) among guesses (0) would turn the head alone.
     noise_deg : float
         Turns read within it are not taken out; from ``noise_deg`` to twice it, taken out
         in a linear ramp (:data:`TURN_NOISE_DEG`).
@@ -117,8 +119,10 @@ def front_turn(x: Mapping[str, float], z: Mapping[str, float], weight: Mapping[s
 
 def generic_depths(x: Mapping[str, float], z: Mapping[str, float], generic: Head) -> dict[str, float]:
     """A depth for each id of ``x``: the side photo's, else its mirror partner's, else the
-    generic head's shifted to the side photo's depths (a point the side photo cannot give
-    only needs its depth roughly, for the turn's share of its x)."""
+    generic head's shifted to the side photo's depths. A point the side photo cannot give
+    needs its depth only roughly: for the turn's share of its x, and under perspective
+    for its distance from the front camera (at depth 0, the side camera's axis, the inner
+    eye corners and brows came out 2-3.5 mm too high)."""
     g = {i: float(generic.fp_position(i)[2]) for i in generic.feature_points}
     both = [i for i in z if i in g]
     shift = float(np.mean([z[i] - g[i] for i in both])) if both else 0.0
