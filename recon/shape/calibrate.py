@@ -34,7 +34,7 @@ from mpeg4.head import Head
 from .core_points import CORE_GROUPS, is_core
 from .deform import bounding_controls, dffd, fit_similarity
 from .hair import skull_normals, skull_under
-from .turn import MAX_TURN_DEG, front_turn, generic_depths, too_turned
+from .turn import front_turn, generic_depths
 
 __all__ = ["DEFAULT_IPD_MM", "CORE_GROUPS", "is_core", "Calibration", "HeightsDisagree", "calibrate"]
 
@@ -377,8 +377,6 @@ def _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, he
         # the midline; a point placed by hand (confidence 1) among the generic head's
         # guesses (0) held a turn of 64 degrees alone.
         sin_yaw, x0 = front_turn(X, Z)
-        if abs(sin_yaw) > np.sin(np.radians(MAX_TURN_DEG)):
-            raise too_turned(sin_yaw)
         z_of = generic_depths(X, Z, generic)
         X = {i: v - x0 - sin_yaw * z_of[i] for i, v in X.items()}
         cos_yaw = float(np.sqrt(1.0 - sin_yaw ** 2))
@@ -519,11 +517,10 @@ def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, 
     z = {i: 0.0 for i in set(rf) | set(rs)}
     x = {i: 0.0 for i in set(rf) | set(rs)}
     spread = np.linalg.norm(rf["3.5"] - rf["3.6"])
-    sin_yaw = 0.0
+    sin_yaw, cos_yaw = 0.0, 1.0
     for _ in range(_PERSPECTIVE_ROUNDS):
         # The head turned by yaw in the front camera's frame: x' = x cos + z sin (+ an
         # offset), depth z' = z cos - x sin; a point at depth z' is dist_f - z' away.
-        cos_yaw = np.sqrt(1.0 - sin_yaw ** 2)
         seen = {i: v for i, v in z.items() if i in rs}  # depth 0 in the first round
         z_of = generic_depths(rf, seen, generic)
         zc = {i: z_of[i] * cos_yaw - x[i] * sin_yaw for i in rf}
@@ -533,9 +530,8 @@ def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, 
         turned = {i: r[0] * (dist_f - zc[i]) for i, r in rf.items()}
         Yf = {i: -r[1] * (dist_f - zc[i]) for i, r in rf.items()}
         sin_yaw, x0 = front_turn(turned, seen)
-        if abs(sin_yaw) > np.sin(np.radians(MAX_TURN_DEG)):
-            raise too_turned(sin_yaw)
-        X = {i: (v - x0 - sin_yaw * z_of[i]) / np.sqrt(1.0 - sin_yaw ** 2) for i, v in turned.items()}
+        cos_yaw = np.sqrt(1.0 - sin_yaw ** 2)
+        X = {i: (v - x0 - sin_yaw * z_of[i]) / cos_yaw for i, v in turned.items()}
         x.update(X)
 
         def x_seen(i):
@@ -556,6 +552,6 @@ def _perspective(front, side_any, generic, ipd, f, front_size, side_size, roll, 
         Ys = {i: y0 - r[1] * (dist_s - sigma * x_seen(i)) for i, r in rs.items()}
         z.update(Z)
     resid = {i: float(Ys[i] - Yf[i]) for i in shared}
-    scales = {"front": float(ipd * np.sqrt(1.0 - sin_yaw ** 2) / (spread * f)),
+    scales = {"front": float(ipd * cos_yaw / (spread * f)),
               "side": float((dist_s - sigma * x["3.5"]) / f)}
     return X, Yf, Z, Ys, resid, scales, sin_yaw

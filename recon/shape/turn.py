@@ -46,7 +46,7 @@ def too_turned(sin_yaw: float) -> InputError:
 
 
 def front_turn(x: Mapping[str, float], z: Mapping[str, float], weight: Mapping[str, float] | None = None,
-               noise_deg: float = TURN_NOISE_DEG) -> tuple[float, float]:
+               noise_deg: float = TURN_NOISE_DEG, max_deg: float = MAX_TURN_DEG) -> tuple[float, float]:
     """The head's turn in the front photo, from where its midline lies there at each depth.
 
     A face turned by ``yaw`` about the vertical shows a point at ``x cos(yaw) + z sin(yaw)``
@@ -72,6 +72,8 @@ def front_turn(x: Mapping[str, float], z: Mapping[str, float], weight: Mapping[s
     noise_deg : float
         Turns read within it are not taken out; from ``noise_deg`` to twice it, taken out
         in a linear ramp (:data:`TURN_NOISE_DEG`).
+    max_deg : float
+        A turn read past it is an error (:func:`too_turned`, :data:`MAX_TURN_DEG`).
 
     Returns
     -------
@@ -112,6 +114,8 @@ def front_turn(x: Mapping[str, float], z: Mapping[str, float], weight: Mapping[s
             break
         h = w * np.minimum(1.0, 1.5 * scale / np.maximum(np.abs(r), 1e-12))
     deg = np.degrees(np.arcsin(np.clip(slope, -0.9, 0.9)))
+    if abs(deg) > max_deg:
+        raise too_turned(float(np.sin(np.radians(deg))))
     taken = deg * np.clip((abs(deg) - noise_deg) / max(noise_deg, 1e-9), 0.0, 1.0)
     sin_yaw = float(np.sin(np.radians(taken)))
     return sin_yaw, float(np.average(m - sin_yaw * d, weights=h))
