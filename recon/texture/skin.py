@@ -524,7 +524,7 @@ def textured_head(head: Head, skin: SkinTexture, front_photo: np.ndarray, seed: 
 
 
 def _eye_colours(head: Head, skin: SkinTexture, front_photo: np.ndarray) -> dict:
-    """``{eye part: (pupil (3,) mm, iris RGB (3,), white RGB (3,))}`` from the front photo.
+    """``{eye part: (pupil (3,) metres, iris RGB (3,), white RGB (3,))}`` from the front photo.
 
     The photo's colours with its light taken out as the skin's was (its shading), so the
     eyes sit in the skin as the photo has them: a fixed paper-white sclera stared out of
@@ -543,12 +543,12 @@ def _eye_colours(head: Head, skin: SkinTexture, front_photo: np.ndarray) -> dict
             continue
         pupil = head.fp_position(fp)
         at = front.project(pupil[None])[0]
-        px_per_mm = np.linalg.norm(front.project((pupil + [0.001, 0, 0])[None])[0] - at) / 0.001
+        px_per_m = np.linalg.norm(front.project((pupil + [0.001, 0, 0])[None])[0] - at) / 0.001
         lit = 1.0 if shading is None else float(shading[int(np.clip(at[1], 0, shading.shape[0] - 1)),
                                                         int(np.clip(at[0], 0, shading.shape[1] - 1))])
         ends = [front.project(head.fp_position(c)[None])[0] for c in corners if c in head.feature_points]
-        white = materials.sclera_colour(front_photo, at, ends, 0.0058 * px_per_mm)
-        found[name] = (pupil, materials.iris_colour(front_photo, at, 0.0058 * px_per_mm) / lit,
+        white = materials.sclera_colour(front_photo, at, ends, 0.0058 * px_per_m)
+        found[name] = (pupil, materials.iris_colour(front_photo, at, 0.0058 * px_per_m) / lit,
                        None if white is None else white / lit)
     whites = [w for _, _, w in found.values() if w is not None]
     white = np.mean(whites, axis=0) if whites else np.asarray(materials.SCLERA_RGB, float)
