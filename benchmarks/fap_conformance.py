@@ -10,6 +10,9 @@ temporary folder), and measures on every frame, played without the head turns:
 - ``eyeball_centre_shift_max_mm``: how far an eyeball's centre moves (target ≤ 0.2);
 - ``fp_conformance_pct``: share of predicted feature-point frames within max(10 %, 0.5 mm)
   of value × FAPU along the FAPs' axes (target ≥ 95);
+  ``fp_conformance_played_pct``: the same against the values as the limits a face has left
+  them (:mod:`fmc.limits`: lids and lips that meet, brows and cheeks held to their range),
+  what the decoder was asked to play;
 - ``inverted_triangles_max``: skin triangles turned over (target 0);
 - ``edge_stretch_max``: longest skin edge over its neutral length (target ≤ 2.5);
 - ``lid_overlap_max_mm``: a lower lid above its upper one (target ≤ 0.5);
@@ -58,10 +61,13 @@ def write_greta_streams(folder: Path, out_dir: Path, fps: float = 25.0) -> list[
 def play_file(head, player, checks, stream) -> dict[str, float]:
     from fmc.author import JAW_FAPS
     from fmc.conformance import HEAD_TURN_FAPS, eyeball_centre_shift, fp_conformance, lid_overlap, region_over_fp
+    from fmc.limits import Limits
+
+    limits = Limits(head)
 
     held = stream.held()
     shift = stretch = overlap = 0.0
-    inverted = ok = total = 0
+    inverted = ok = total = played_ok = played_total = 0
     largest: dict[int, float] = {}
     for i in range(held.n_frames):
         values = {k: v for k, v in held.frame_values(i).items() if k not in HEAD_TURN_FAPS}
@@ -72,6 +78,8 @@ def play_file(head, player, checks, stream) -> dict[str, float]:
         shift = max(shift, eyeball_centre_shift(head, parts))
         a, b = fp_conformance(head, values, moved=parts)
         ok, total = ok + a, total + b
+        a, b = fp_conformance(head, limits(values)[0], moved=parts)
+        played_ok, played_total = played_ok + a, played_total + b
         inverted = max(inverted, checks.inverted(parts["skin"]))
         stretch = max(stretch, checks.stretch(parts["skin"]))
         overlap = max(overlap, lid_overlap(head, parts))
@@ -80,9 +88,10 @@ def play_file(head, player, checks, stream) -> dict[str, float]:
     ratios = [r for r in ratios if math.isfinite(r)]
     return {"eyeball_centre_shift_max_mm": 1e3 * shift,
             "fp_conformance_pct": 100.0 * ok / total if total else float("nan"),
+            "fp_conformance_played_pct": 100.0 * played_ok / played_total if played_total else float("nan"),
             "inverted_triangles_max": inverted, "edge_stretch_max": stretch,
             "lid_overlap_max_mm": 1e3 * overlap, "region_over_fp_max": max(ratios, default=float("nan")),
-            "_ok": ok, "_total": total}
+            "_ok": ok, "_total": total, "_played_ok": played_ok, "_played_total": played_total}
 
 
 def fmt_value(v) -> str:
@@ -134,17 +143,19 @@ def main(argv=None) -> int:
     for hname, head in heads.items():
         player, checks = Player(head), SurfaceChecks(head)
         totals: dict[str, float] = {}
-        ok = total = 0
+        ok = total = played_ok = played_total = 0
         for path in files:
             res = play_file(head, player, checks, read_fap(path, lenient=True))
             ok, total = ok + res.pop("_ok"), total + res.pop("_total")
+            played_ok, played_total = played_ok + res.pop("_played_ok"), played_total + res.pop("_played_total")
             for k, v in res.items():
                 print(f"{hname}.{path.stem}.{k}: {fmt_value(v)}")
-                if k != "fp_conformance_pct" and (isinstance(v, int) or math.isfinite(v)):
+                if not k.startswith("fp_conformance") and (isinstance(v, int) or math.isfinite(v)):
                     totals[k] = max(totals.get(k, v), v)
         totals["fp_conformance_pct"] = 100.0 * ok / total if total else float("nan")
-        for k in ("eyeball_centre_shift_max_mm", "fp_conformance_pct", "inverted_triangles_max", "edge_stretch_max",
-                  "lid_overlap_max_mm", "region_over_fp_max"):
+        totals["fp_conformance_played_pct"] = 100.0 * played_ok / played_total if played_total else float("nan")
+        for k in ("eyeball_centre_shift_max_mm", "fp_conformance_pct", "fp_conformance_played_pct",
+                  "inverted_triangles_max", "edge_stretch_max", "lid_overlap_max_mm", "region_over_fp_max"):
             print(f"{hname}.{k}: {fmt_value(totals[k])}")
     return 0
 

@@ -20,6 +20,16 @@ played, and says what it changed:
   (4.1, 4.2) towards the midline; it stops while the point keeps :data:`MIDLINE_KEEP` of
   its neutral distance from it (skin is left between the brows: a squeeze of 220 once moved
   the skin between them 14 mm sideways, through the other brow's).
+- **Ranges** (:data:`RANGE_LIMITS`): the brows move at most a quarter of ENS0 either way (12
+  mm on the generic head), the cheeks rise at most a quarter. Maximal
+  frontalis contraction lifts the brow's middle by 7.6 to 9.0 mm on average (Cruz and
+  Cruz, Arq. Bras. Oftalmol. 67(2), 2004, 81 people); the sculpted whole-brow raise the
+  tables come from lifts it 10.3 mm, its frown lowers it 3.7 mm, and its cheek squint and
+  smile together lift the cheek 9.8 mm. Greta's surprise asks for 560 units (26 mm): the
+  forehead rose in a ridge over the brows and the skin above the lid crease stretched to
+  five times its length (three at the limit, which the sculpted raise also gives). The
+  lowering's bound is generous (the frown lowers the brow 3.7 mm; Greta's anger asks 7.4):
+  it only stops a brow driven into the eye.
 - **Turns** (:data:`TURN_LIMITS_DEG`): eyeball and head rotations clamped to a range of
   motion. The standard gives none; these are this project's choice, round figures inside
   a typical adult's range (eyes about 45° each way, the head 80° of yaw, 60° of pitch,
@@ -42,7 +52,8 @@ from mpeg4.head import Head
 from .author import JAW_FAPS
 from .decouple import effect_of, table_effect
 
-__all__ = ["MEETING_PAIRS", "LIP_PAIRS", "LIP_KEEP", "MIDLINE_FAPS", "MIDLINE_KEEP", "TURN_LIMITS_DEG", "Limits"]
+__all__ = ["MEETING_PAIRS", "LIP_PAIRS", "LIP_KEEP", "MIDLINE_FAPS", "MIDLINE_KEEP", "RANGE_LIMITS",
+           "TURN_LIMITS_DEG", "Limits"]
 
 #: (upper FAP, lower FAP) whose points must not pass each other: lids, then inner and
 #: outer lip contours (centre, left and right midpoints).
@@ -66,6 +77,12 @@ MIDLINE_FAPS = (37, 38)
 #: Share of its neutral distance from the midline an inner brow point keeps at the most
 #: squeeze (the project's choice: the brows draw together, they do not meet).
 MIDLINE_KEEP = 0.25
+
+#: FAP → (lowest, highest) motion of its point, as a share of its FAPU's neutral length
+#: (ENS0 for both; None: no limit), the project's round figures above the measured range
+#: (see the module's docstring): the brows' raisers 31-36 and the cheeks' lifts 41, 42.
+RANGE_LIMITS: dict[int, tuple[float | None, float | None]] = {
+    **{n: (-0.25, 0.25) for n in range(31, 37)}, 41: (None, 0.25), 42: (None, 0.25)}
 
 #: Largest turn, degrees each way, per rotation FAP.
 TURN_LIMITS_DEG = {23: 45.0, 24: 45.0, 25: 40.0, 26: 40.0, 48: 60.0, 49: 80.0, 50: 40.0}
@@ -101,6 +118,9 @@ class Limits:
         self._jaw = {j: table_effect(head, fat[(j, 0)], points) for j in JAW_FAPS if (j, 0) in fat}
         self._high = {key: table_effect(head, t, points) for key, t in fat.items() if key[0] in (1, 2)}
         self._n_points = len(points)
+        # Each range in FAP values: a share of the FAPU's neutral length is 1024 × the share.
+        self.ranges = {n: tuple(None if r is None else 1024.0 * r for r in rng)
+                       for n, rng in RANGE_LIMITS.items()}
         self.turns = {n: np.radians(deg) / fap_unit(n, head.fapu) for n, deg in TURN_LIMITS_DEG.items()}
         self.midline = {}
         for n in MIDLINE_FAPS:
@@ -156,6 +176,16 @@ class Limits:
             if v and v > most:
                 out[n] = most
                 changed.append(f"{FAPS[n].name} stopped short of the midline")
+        for n, (low, high) in self.ranges.items():
+            v = out.get(n)
+            if not v:
+                continue
+            held = min(v, high) if high is not None else v
+            held = max(held, low) if low is not None else held
+            if held != v:
+                out[n] = held
+                changed.append(f"{FAPS[n].name} held to its range ({low:g} to {high:g})" if low is not None
+                               else f"{FAPS[n].name} held to its range (at most {high:g})")
         for n, limit in self.turns.items():
             v = out.get(n)
             if v and abs(v) > limit:

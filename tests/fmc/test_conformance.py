@@ -221,3 +221,28 @@ def test_the_limits_settle_all_pairs_at_once(shipped):
         again, changed_again = limits(once)
         assert changed
         np.testing.assert_allclose([again[n] for n in lips], [once[n] for n in lips], atol=0.05)
+
+
+def test_brows_and_cheeks_are_held_to_their_range(shipped):
+    """Greta's surprise raises the brows 560 units (26 mm on the generic head): the limits
+    hold them to a quarter of ENS0, where the brow points rise 12 mm, not through a ridge
+    of forehead; the skin above the lid crease stretches less than half as far."""
+    from fmc.conformance import SurfaceChecks
+    from fmc.limits import RANGE_LIMITS, Limits
+
+    surprise = {31: 460.0, 32: 460.0, 33: 560.0, 34: 520.0, 35: 410.0, 36: 410.0, 41: 400.0}
+    values, changed = Limits(shipped)(surprise)
+    assert all(values[n] == pytest.approx(1024 * RANGE_LIMITS[n][1]) for n in surprise)
+    assert len(changed) == len(surprise)
+    assert Limits(shipped)({31: -500.0})[0][31] == pytest.approx(1024 * RANGE_LIMITS[31][0])
+    assert Limits(shipped)({31: 100.0, 41: -50.0}) == ({31: 100.0, 41: -50.0}, [])
+    checks = SurfaceChecks(shipped)
+    limited, free = Player(shipped), Player(shipped, limits=False)
+    rise = {}
+    for name, player in (("limited", limited), ("free", free)):
+        parts = player.part_vertices(player.vertices(surprise))
+        rise[name] = 1e3 * (shipped.fp_position("4.3", parts) - shipped.fp_position("4.3"))[1]
+        rise[name + " stretch"] = checks.stretch(parts["skin"])
+    assert rise["limited"] == pytest.approx(0.25 * 1e3 * shipped.fapu.ENS0, rel=0.1)
+    assert rise["free"] > 2 * rise["limited"]
+    assert rise["limited stretch"] - 1 < 0.6 * (rise["free stretch"] - 1), rise
