@@ -28,7 +28,10 @@ annotations, and measures the head against the photos (:mod:`recon.evaluate.real
   photos, the baseline a render must beat (the usual same-person threshold is 0.6);
   ``identity_nearest_other_person[person]``: the distance from the person's front photo to
   the nearest other person's, and ``identity_closer_than_other_people``: for how many
-  builds the render is nearer its photo than that;
+  builds the render is nearer its photo than that; ``identity_distance_lights``: the mean
+  of the same distance over three key lights (``IDENTITY_LIGHTS``: the one light of
+  ``identity_distance`` is arbitrary, and on a turned face it moves the figure as much as
+  the shape does);
 - ``skin_delta_e``: CIEDE2000 between the photo's median skin colour (cheeks, forehead) and
   the albedo texture's, rendered unlit from the front camera; ``skin_delta_e_relit``: the
   same with the render relit as the photo is lit (times the shading the build fitted to the
@@ -239,6 +242,14 @@ def measure_view(fig: dict, pics: dict, head, cam, image: np.ndarray, pts: dict,
         if e_photo is not None and e_render is not None:
             fig["identity_distance"] = float(np.linalg.norm(e_photo - e_render))
             fig["_embedding"] = e_photo
+            # The one key light above is arbitrary: on a turned face it lights one cheek and
+            # shades the other whatever the photo's light, which moves the figure by as much
+            # as a change of shape does (s001: 0.543 with it, 0.536 mirrored, 0.465 from the
+            # camera). The mean over IDENTITY_LIGHTS tells the two apart.
+            lights = [rec.embed(render_lit(head, cam, light)) for light in IDENTITY_LIGHTS]
+            lights = [float(np.linalg.norm(e_photo - e)) for e in lights if e is not None]
+            if lights:
+                fig["identity_distance_lights"] = float(np.mean(lights))
     pics[view] = (image, lit, mask)
 
 
@@ -284,11 +295,19 @@ def measure_front_only(name, front, side, out: Path, rec: Recogniser, texture_si
     return fig, pics
 
 
-def render_lit(head, cam) -> np.ndarray:
+#: Key lights (camera frame: x right, y up, z towards the camera) of
+#: ``identity_distance_lights``: the renderer's default above the left, its mirror image
+#: above the right, and a light at the camera.
+IDENTITY_LIGHTS = ((-0.3, 0.4, 1.0), (0.3, 0.4, 1.0), (0.0, 0.0, 1.0))
+
+
+def render_lit(head, cam, light=None) -> np.ndarray:
+    """(H, W, 3) uint8: the textured head through ``cam``, lit by the renderer's default key
+    light or by ``light`` (a direction towards it in the camera frame)."""
     from mpeg4.preview import head_meshes
     from mpeg4.render import render
 
-    return render(head_meshes(head), cam, samples=4)
+    return render(head_meshes(head), cam, samples=4, light=light)
 
 
 def contact_sheet(rows: dict, path: Path, height: int = 240) -> None:
@@ -392,6 +411,7 @@ def main(argv=None) -> int:
         print(f"{key}: {median(key):.3f}")
     print(f"profile_line_refit_ipd_pct: {median('profile_line_refit_ipd_pct'):.3f}")
     print(f"identity_distance: {median('identity_distance'):.3f}")
+    print(f"identity_distance_lights: {median('identity_distance_lights'):.3f}")
     print(f"identity_distance_other_people: {np.median(others) if others else float('nan'):.3f}")
     print(f"identity_closer_than_other_people: {sum(closer)} of {len(closer)}")
     print(f"skin_delta_e: {median('skin_delta_e'):.3f}")

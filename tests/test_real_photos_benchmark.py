@@ -10,7 +10,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PAIRS = ROOT.parent / "shared" / "data" / "real_photos" / "pairs"
 FIGURES = ("built", "point_agreement_ipd_pct", "profile_line_ipd_pct", "silhouette_iou_front", "silhouette_iou_side",
-           "heldout_profile_line_ipd_pct", "heldout_silhouette_iou", "identity_distance",
+           "heldout_profile_line_ipd_pct", "heldout_silhouette_iou", "identity_distance", "identity_distance_lights",
            "identity_distance_other_people", "skin_delta_e", "skin_delta_e_relit", "skin_delta_e_worst")
 
 
