@@ -21,11 +21,11 @@ played, and says what it changed:
   its neutral distance from it (skin is left between the brows: a squeeze of 220 once moved
   the skin between them 14 mm sideways, through the other brow's).
 - **Ranges** (:data:`RANGE_LIMITS`): the brows move at most a quarter of ENS0 either way (12
-  mm on the generic head), the cheeks rise at most a quarter. Maximal
-  frontalis contraction lifts the brow's middle by 7.6 to 9.0 mm on average (Cruz and
-  Cruz, Arq. Bras. Oftalmol. 67(2), 2004, 81 people); the sculpted whole-brow raise the
-  tables come from lifts it 10.3 mm, its frown lowers it 3.7 mm, and its cheek squint and
-  smile together lift the cheek 9.8 mm. Greta's surprise asks for 560 units (26 mm): the
+  mm on the generic head), the cheeks rise at most a quarter. Maximal frontalis
+  contraction lifts the brow's middle by 7.6 to 9.0 mm on average (Cruz and Cruz, Arq.
+  Bras. Oftalmol. 2004, pp. 237-240: the means of three age groups, 81 people); the
+  sculpted whole-brow raise the tables come from lifts it 10.3 mm, its frown lowers it
+  3.7 mm, and its cheek squint and smile together lift the cheek 9.8 mm. Greta's surprise asks for 560 units (26 mm): the
   forehead rose in a ridge over the brows and the skin above the lid crease stretched to
   five times its length (three at the limit, which the sculpted raise also gives). The
   lowering's bound is generous (the frown lowers the brow 3.7 mm; Greta's anger asks 7.4):
