@@ -25,11 +25,11 @@ played, and says what it changed:
   contraction lifts the brow's middle by 7.6 to 9.0 mm on average (Cruz and Cruz, Arq.
   Bras. Oftalmol. 2004, pp. 237-240: the means of three age groups, 81 people); the
   sculpted whole-brow raise the tables come from lifts it 10.3 mm, its frown lowers it
-  3.7 mm, and its cheek squint and smile together lift the cheek 9.8 mm. Greta's surprise asks for 560 units (26 mm): the
-  forehead rose in a ridge over the brows and the skin above the lid crease stretched to
-  five times its length (three at the limit, which the sculpted raise also gives). The
-  lowering's bound is generous (the frown lowers the brow 3.7 mm; Greta's anger asks 7.4):
-  it only stops a brow driven into the eye.
+  3.7 mm, and its cheek squint and smile together lift the cheek 9.8 mm. Greta's surprise
+  asks for 560 units (26 mm): the forehead rose in a ridge over the brows and the skin
+  above the lid crease stretched to five times its length (three at the limit, which the
+  sculpted raise also gives). The lowering's bound is generous (the frown lowers the brow
+  3.7 mm; Greta's anger asks 7.4): it only stops a brow driven into the eye.
 - **Turns** (:data:`TURN_LIMITS_DEG`): eyeball and head rotations clamped to a range of
   motion. The standard gives none; these are this project's choice, round figures inside
   a typical adult's range (eyes about 45° each way, the head 80° of yaw, 60° of pitch,
@@ -184,8 +184,8 @@ class Limits:
             held = max(held, low) if low is not None else held
             if held != v:
                 out[n] = held
-                changed.append(f"{FAPS[n].name} held to its range ({low:g} to {high:g})" if low is not None
-                               else f"{FAPS[n].name} held to its range (at most {high:g})")
+                span = " to ".join("any" if b is None else f"{b:g}" for b in (low, high))
+                changed.append(f"{FAPS[n].name} held to its range ({span})")
         for n, limit in self.turns.items():
             v = out.get(n)
             if v and abs(v) > limit:
