@@ -75,6 +75,7 @@ from mpeg4.io.fdp_json import FdpFile, place_mesh
 from recon.shape.deform import fit_similarity
 
 from .checks import CHECKS, Problem, check_points
+from .ears import ears_by_outline
 from .decimate import MAX_MARK_TRIANGLES, carry_back, decimate
 from .frame import AXES, UNITS, Frame, check_mesh, estimate_frame, refine_frame, unit_from_face
 from .lift import Hit, _Surface, lift
@@ -85,7 +86,7 @@ from .views import Views, landmark_detector, render_views, untextured_guesses
 __all__ = ["UNITS", "AXES", "Frame", "check_mesh", "estimate_frame", "refine_frame", "Views", "render_views",
            "landmark_detector", "untextured_guesses", "Hit", "lift", "find_parts", "given_parts", "check_given_parts",
            "parse_part_options",
-           "unit_from_face", "fitted_points", "lips_on_their_own_side", "pupils_in_openings",
+           "unit_from_face", "fitted_points", "ears_by_outline", "lips_on_their_own_side", "pupils_in_openings",
            "hidden_points",
            "Problem", "CHECKS", "check_points", "Marking", "mark", "mark_file", "load_mesh", "default_fdp_path",
            "MIN_POINTS", "MAX_MARK_TRIANGLES"]
@@ -338,6 +339,7 @@ def _mark(raw: Head, where: str, warnings: list[str], detect, unit, up, forward,
     guessed = getattr(detect, "guessed", None)
     hits = fitted_points(head, hits, set() if guessed is None else guessed(found), getattr(detect, "give", 0.0),
                          surface)
+    hits = ears_by_outline(hits, surface)
     hits = lips_on_their_own_side(head, hits, surface)
     hits = pupils_in_openings(head, hits, surface)
     hits = hidden_points(head, hits, surface=surface)

@@ -144,8 +144,16 @@ def untextured_guesses(found: FdpFile) -> set[str]:
     face's oval, not from anything it sees (the chin boss and corners, the jaw angles
     2.10-2.14, the cheeks 5.x); and whatever :func:`recon.landmarks.detect` found in the
     front view by the silhouette or by rule rather than by its face mesh (the ears, the top
-    of the skull). :func:`fitted_points` places them from the shape instead.
+    of the skull), and the ear points it found so in the side view (with their right
+    partners). :func:`fitted_points` places them from the shape instead
+    (:func:`recon.mark.ears.ears_by_outline` then the ears from their rim).
     """
-    source = (found.metadata.get("landmarks") or {}).get("source", {}).get("front", {})
+    sources = (found.metadata.get("landmarks") or {}).get("source", {})
     out = {i for i in FP_IDS if FEATURE_POINTS[i].group in (4, 5) or i in _TEXTURE_POINTS}
-    return out | {i for i, s in source.items() if s != "model"}
+    out |= {i for i, s in sources.get("front", {}).items() if s != "model"}
+    # The side render shows an ear inside the head's outline, not on it: the side view's
+    # ear points by the outline or by rule are guesses too (10.3, which the front view
+    # cannot show, came out 7.6 mm off on MakeHuman's head), and so are their partners,
+    # mirrored from them.
+    ears = {i for i, s in sources.get("side", {}).items() if FEATURE_POINTS[i].group == 10 and s != "model"}
+    return out | ears | {FEATURE_POINTS[i].mirror for i in ears if FEATURE_POINTS[i].mirror}

@@ -60,6 +60,10 @@ def test_makehuman_is_marked_and_its_own_targets_clone_onto_the_generic_head(tmp
     errors = marking_error(found, reference)
     assert len(errors) == len(reference) == 48
     assert np.median(list(errors.values())) < 6.0 and np.percentile(list(errors.values()), 90) < 11.0, errors
+    # The ears from their free rim (recon.mark.ears), not from the generic head's ear
+    # fitted to the surface: 8.8-15 % off then (behind the helix, the lobe inside it), 0.8-5.5 % now.
+    ears = {i: e for i, e in errors.items() if i.startswith("10.")}
+    assert max(ears.values()) < 7.0, ears
     assert set(head.morph_targets) == {"jaw_drop", "smile"}
     p = head.fp_positions()
     es0 = np.linalg.norm(p["3.5"] - p["3.6"])

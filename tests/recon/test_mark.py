@@ -333,3 +333,45 @@ def test_a_candide_size_head_is_marked_in_any_unit(scale):
               for i in truth if i in result.head.feature_points]
     # The coarse surface lies millimetres from the fine one the true points are on.
     assert len(errors) >= 70 and np.median(errors) < 0.05 and np.percentile(errors, 90) < 0.2
+
+
+def test_guessed_ear_points_go_to_the_ears_free_rim():
+    # A grey render shows no ear a photo detector reads: the ear points were the fitted
+    # generic head's, 5-8 mm off MakeHuman's (behind the helix's top, the lobe's lowest
+    # point on the side of the head). A flap standing off the side of the head is the ear:
+    # its top, lowest point and rear rim at mid height are read off it, on the flap itself.
+    from mpeg4.catalogue import FEATURE_POINTS
+    from recon.mark.ears import ears_by_outline
+    from recon.mark.lift import Hit, _Surface
+
+    skull = trimesh.creation.icosphere(subdivisions=4, radius=0.08)
+    parts = [skull]
+    for side in (1.0, -1.0):  # each ear a slab 60 mm tall, 30 mm deep, 3 mm thick, 5 mm off the skull
+        ear = trimesh.creation.box((0.003, 0.06, 0.03))
+        ear.apply_translation((side * 0.0865, 0.0002, -0.01))  # its edges between the grid's rays
+        parts.append(ear)
+    both = trimesh.util.concatenate(parts)
+    head = Head({"skin": Part("skin", np.asarray(both.vertices), np.asarray(both.faces))})
+    surface = _Surface(head)
+    # Guesses off by 4 mm back and down, as the fit left them; 10.7 a detector's point.
+    guess = {"10.1": (0.0, 0.03, -0.01), "10.5": (0.0, -0.03, -0.01), "10.3": (0.0, 0.0, -0.025),
+             "10.9": (0.0, 0.025, 0.005), "10.7": (0.0, -0.025, 0.005)}
+    hits = {}
+    for i, (_, y, z) in guess.items():
+        for j, side in ((i, 1.0), (FEATURE_POINTS[i].mirror, -1.0)):
+            p = np.array([side * 0.08, y - 0.004, z - 0.004])
+            hits[j] = Hit(p, "skin", 0, np.array([1.0, 0.0, 0.0]), 0.3, "shape" if i != "10.7" else "side ray")
+    out = ears_by_outline(hits, surface)
+    for i, side in (("10.1", 1.0), ("10.2", -1.0)):
+        assert out[i].how == "ear rim" and np.allclose(out[i].point, [side * 0.088, 0.03, -0.01], atol=0.001), i
+    for i, side in (("10.5", 1.0), ("10.6", -1.0)):
+        assert np.allclose(out[i].point, [side * 0.088, -0.03, -0.01], atol=0.001), i
+    for i, side in (("10.3", 1.0), ("10.4", -1.0)):
+        assert np.allclose(out[i].point, [side * 0.088, 0.0, -0.025], atol=0.001), i
+    for i in ("10.9", "10.10"):
+        assert out[i].point[2] == pytest.approx(0.005, abs=0.001) and out[i].point[1] > 0, i
+    assert out["10.7"] is hits["10.7"] and out["10.8"] is hits["10.8"]  # found, not guessed: kept
+    # No ear (the skull alone, a face mask): the guesses stay.
+    bald = _Surface(Head({"skin": Part("skin", np.asarray(skull.vertices), np.asarray(skull.faces))}))
+    kept = ears_by_outline(hits, bald)
+    assert all(kept[i] is hits[i] for i in hits)
