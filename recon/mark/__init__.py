@@ -37,7 +37,10 @@ comes in its own units and axes. :func:`mark` gives it both:
    shows no eyebrows, hairline or ear detail, so the points a detector can only guess
    there (:func:`untextured_guesses`) are the fitted generic head's, with lower
    confidences; the found points are smoothed by the fit as far as the detector says its
-   noise needs (its ``give``).
+   noise needs (its ``give``). The guessed ear points then go to the ear's free rim
+   (:func:`ears_by_outline`), and the inner lip contour's half-way points to where the
+   standard puts them, halfway to the corners on the contour a front scan finds
+   (:func:`inner_lip_halfway`).
 9. :func:`hidden_points` places the points no view shows and no fit reached (teeth,
    tongue; 7.1 on a mesh without a skin) from the generic head.
 10. :func:`check_points` checks that the points look like a face (the midline's vertical
@@ -80,13 +83,13 @@ from .decimate import MAX_MARK_TRIANGLES, carry_back, decimate
 from .frame import AXES, UNITS, Frame, check_mesh, estimate_frame, refine_frame, unit_from_face
 from .lift import Hit, _Surface, lift
 from .parts import _inside_binding, check_given_parts, find_parts, given_parts, parse_part_options
-from .points import fitted_points, hidden_points, lips_on_their_own_side, pupils_in_openings
+from .points import fitted_points, hidden_points, inner_lip_halfway, lips_on_their_own_side, pupils_in_openings
 from .views import Views, landmark_detector, render_views, untextured_guesses
 
 __all__ = ["UNITS", "AXES", "Frame", "check_mesh", "estimate_frame", "refine_frame", "Views", "render_views",
            "landmark_detector", "untextured_guesses", "Hit", "lift", "find_parts", "given_parts", "check_given_parts",
            "parse_part_options",
-           "unit_from_face", "fitted_points", "ears_by_outline", "lips_on_their_own_side", "pupils_in_openings",
+           "unit_from_face", "fitted_points", "ears_by_outline", "inner_lip_halfway", "lips_on_their_own_side", "pupils_in_openings",
            "hidden_points",
            "Problem", "CHECKS", "check_points", "Marking", "mark", "mark_file", "load_mesh", "default_fdp_path",
            "MIN_POINTS", "MAX_MARK_TRIANGLES"]
@@ -340,6 +343,7 @@ def _mark(raw: Head, where: str, warnings: list[str], detect, unit, up, forward,
     hits = fitted_points(head, hits, set() if guessed is None else guessed(found), getattr(detect, "give", 0.0),
                          surface)
     hits = ears_by_outline(hits, surface)
+    hits = inner_lip_halfway(head, hits, surface)
     hits = lips_on_their_own_side(head, hits, surface)
     hits = pupils_in_openings(head, hits, surface)
     hits = hidden_points(head, hits, surface=surface)
