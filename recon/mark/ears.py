@@ -50,8 +50,8 @@ _BAND = 0.001  # the top and bottom are the middles of the rim's highest and low
 
 def ear_rim(surface: _Surface, top: float, front: float, size: tuple[float, float], side: float,
             step: float = _STEP) -> tuple[np.ndarray, np.ndarray]:
-    """Where the side rays through a grid meet the surface three times or more on the
-    ear's side of the midline.
+    """Where the side rays through a grid meet the skin (the surface, on a head without a
+    ``skin`` part) three times or more on the ear's side of the midline.
 
     Parameters
     ----------
@@ -69,7 +69,7 @@ def ear_rim(surface: _Surface, top: float, front: float, size: tuple[float, floa
     rim : (R, C) bool
         Row r at height ``top - r * step``, column c at depth ``front + c * step``.
     first : (R, C, 3) float
-        The first surface point each ray meets (NaN where none).
+        The first skin point each ray meets (NaN where none).
     """
     ys = top - step * np.arange(int(np.ceil(size[0] / step)))
     zs = front + step * np.arange(int(np.ceil(size[1] / step)))
@@ -77,8 +77,12 @@ def ear_rim(surface: _Surface, top: float, front: float, size: tuple[float, floa
     start = side * (np.abs(surface.vertices[:, 0]).max() + 0.01)
     o = np.c_[np.full(z.size, start), y.ravel(), z.ravel()]
     d = np.tile([-side, 0.0, 0.0], (len(o), 1))
-    loc, ray, _ = surface.mesh.ray.intersects_location(o, d, multiple_hits=True)
-    loc, ray = np.reshape(loc, (-1, 3)), np.asarray(ray, dtype=np.int64)
+    loc, ray, tri = surface.mesh.ray.intersects_location(o, d, multiple_hits=True)
+    loc, ray, tri = np.reshape(loc, (-1, 3)), np.asarray(ray, dtype=np.int64), np.asarray(tri, dtype=np.int64)
+    if "skin" in surface.names:
+        # Only the skin: hair over an ear (its own part) would stand free of the head too.
+        on_skin = surface.part_of[tri] == surface.names.index("skin")
+        loc, ray = loc[on_skin], ray[on_skin]
     near_side = side * loc[:, 0] > 0
     count = np.bincount(ray[near_side], minlength=len(o))
     first = np.full((len(o), 3), np.nan)

@@ -371,6 +371,12 @@ def test_guessed_ear_points_go_to_the_ears_free_rim():
     for i in ("10.9", "10.10"):
         assert out[i].point[2] == pytest.approx(0.005, abs=0.001) and out[i].point[1] > 0, i
     assert out["10.7"] is hits["10.7"] and out["10.8"] is hits["10.8"]  # found, not guessed: kept
+    # Hair over the ear (its own part) is no ear: the rim is the skin's.
+    hair = trimesh.creation.box((0.003, 0.08, 0.05))
+    hair.apply_translation((0.095, 0.0, -0.01))
+    haired = _Surface(Head({"skin": head.parts["skin"],
+                            "hair": Part("hair", np.asarray(hair.vertices), np.asarray(hair.faces))}))
+    assert np.allclose(ears_by_outline(hits, haired)["10.1"].point, [0.088, 0.03, -0.01], atol=0.001)
     # No ear (the skull alone, a face mask): the guesses stay.
     bald = _Surface(Head({"skin": Part("skin", np.asarray(skull.vertices), np.asarray(skull.faces))}))
     kept = ears_by_outline(hits, bald)
