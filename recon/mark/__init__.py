@@ -78,8 +78,8 @@ from mpeg4.io.fdp_json import FdpFile, place_mesh
 from recon.shape.deform import fit_similarity
 
 from .checks import CHECKS, Problem, check_points
-from .ears import ears_by_outline
 from .decimate import MAX_MARK_TRIANGLES, carry_back, decimate
+from .ears import ears_by_outline
 from .frame import AXES, UNITS, Frame, check_mesh, estimate_frame, refine_frame, unit_from_face
 from .lift import Hit, _Surface, lift
 from .parts import _inside_binding, check_given_parts, find_parts, given_parts, parse_part_options
@@ -89,7 +89,8 @@ from .views import Views, landmark_detector, render_views, untextured_guesses
 __all__ = ["UNITS", "AXES", "Frame", "check_mesh", "estimate_frame", "refine_frame", "Views", "render_views",
            "landmark_detector", "untextured_guesses", "Hit", "lift", "find_parts", "given_parts", "check_given_parts",
            "parse_part_options",
-           "unit_from_face", "fitted_points", "ears_by_outline", "inner_lip_halfway", "lips_on_their_own_side", "pupils_in_openings",
+           "unit_from_face", "fitted_points", "ears_by_outline", "inner_lip_halfway", "lips_on_their_own_side",
+           "pupils_in_openings",
            "hidden_points",
            "Problem", "CHECKS", "check_points", "Marking", "mark", "mark_file", "load_mesh", "default_fdp_path",
            "MIN_POINTS", "MAX_MARK_TRIANGLES"]

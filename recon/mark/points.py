@@ -4,8 +4,8 @@
 on it, and takes the points a grey render can only guess from the fit;
 :func:`inner_lip_halfway` puts the inner lip contour's half-way points halfway to the
 corners, on the contour a front scan finds; :func:`lips_on_their_own_side` keeps the inner
-lip points on their own lip where the lips touch; :func:`pupils_in_openings` centres the pupils of a head without eyeballs in its
-eye openings; :func:`hidden_points` places those no view shows and no fit reached (teeth,
+lip points on their own lip where the lips touch; :func:`pupils_in_openings` centres the
+pupils of a head without eyeballs in its eye openings; :func:`hidden_points` places those no view shows and no fit reached (teeth,
 tongue).
 """
 
