@@ -26,6 +26,7 @@ Each point is the first surface the side ray at its pixel meets (the rim itself)
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from .lift import Hit, _Surface
 
@@ -46,10 +47,12 @@ _MARGIN = 0.015  # the grid reaches this far beyond the guessed top, rear and lo
 _NEAR = 0.012  # the rim must pass this near each guide point in the side view (the fit's ear error)
 _MIN_HEIGHT = 0.02  # a rim shorter than this is not an ear's
 _BAND = 0.001  # the top and bottom are the middles of the rim's highest and lowest millimetre
+_COARSE = 4  # the first pass's step, in steps: the rim's piece is found at 2 mm
+_COARSE_PAD = 0.006  # the fine pass reaches this far beyond the piece the first pass found (metres)
 
 
 def ear_rim(surface: _Surface, top: float, front: float, size: tuple[float, float], side: float,
-            step: float = _STEP) -> tuple[np.ndarray, np.ndarray]:
+            step: float = _STEP, only: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Where the side rays through a grid meet the skin (the surface, on a head without a
     ``skin`` part) three times or more on the ear's side of the midline.
 
@@ -63,6 +66,10 @@ def ear_rim(surface: _Surface, top: float, front: float, size: tuple[float, floa
         Its height and depth, metres.
     side : float
         +1 for the left ear (x > 0; rays along −x), −1 for the right.
+    step : float
+        The grid's spacing, metres.
+    only : (R, C) bool, optional
+        Cast only these rays (the others are no rim and meet nothing).
 
     Returns
     -------
@@ -76,9 +83,11 @@ def ear_rim(surface: _Surface, top: float, front: float, size: tuple[float, floa
     z, y = np.meshgrid(zs, ys)
     start = side * (np.abs(surface.vertices[:, 0]).max() + 0.01)
     o = np.c_[np.full(z.size, start), y.ravel(), z.ravel()]
-    d = np.tile([-side, 0.0, 0.0], (len(o), 1))
-    loc, ray, tri = surface.mesh.ray.intersects_location(o, d, multiple_hits=True)
-    loc, ray, tri = np.reshape(loc, (-1, 3)), np.asarray(ray, dtype=np.int64), np.asarray(tri, dtype=np.int64)
+    cast = np.arange(len(o)) if only is None else np.flatnonzero(np.asarray(only, bool).ravel())
+    d = np.tile([-side, 0.0, 0.0], (len(cast), 1))
+    loc, ray, tri = surface.mesh.ray.intersects_location(o[cast], d, multiple_hits=True)
+    loc, tri = np.reshape(loc, (-1, 3)), np.asarray(tri, dtype=np.int64)
+    ray = cast[np.asarray(ray, dtype=np.int64)]
     if "skin" in surface.names:
         # Only the skin: hair over an ear (its own part) would stand free of the head too.
         on_skin = surface.part_of[tri] == surface.names.index("skin")
@@ -138,6 +147,40 @@ def _middle(px: np.ndarray, down: int) -> tuple[int, int]:
     return int(at[k, 0]), int(at[k, 1])
 
 
+def _fine_rim(surface: _Surface, hi: np.ndarray, lo: np.ndarray, guides: np.ndarray, side: float
+              ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The rim's piece near the (G, 3) ``guides`` in the grid at :data:`_STEP` spanning
+    ``lo`` to ``hi`` (the (y, z) corners, metres: rows down from ``hi[0]``, columns back
+    from ``lo[1]``): (K, 2) row, column pixels and the grid's first hits (as
+    :func:`ear_rim`), or None.
+
+    A pass at four times the step finds the piece; the fine grid, on the full grid's own
+    lattice, then casts only the rays within :data:`_COARSE_PAD` of it, so that the piece is
+    the one the full grid gives for a fraction of the rays (the rays are the marking's
+    slowest step)."""
+    coarse = _COARSE * _STEP
+    rim, _ = ear_rim(surface, hi[0], lo[1], hi - lo, side, step=coarse)
+    near = _NEAR / coarse
+    piece = _rim_piece(rim, np.c_[(hi[0] - guides[:, 1]) / coarse, (guides[:, 2] - lo[1]) / coarse], near)
+    if piece is None:
+        return None
+    # The box in the full grid's rows and columns: the piece's, the guides', and a margin.
+    rows = np.r_[piece[:, 0] * _COARSE, (hi[0] - guides[:, 1]) / _STEP]
+    cols = np.r_[piece[:, 1] * _COARSE, (guides[:, 2] - lo[1]) / _STEP]
+    pad = _COARSE_PAD / _STEP
+    r0, c0 = (max(int(np.floor(a.min() - pad)), 0) for a in (rows, cols))
+    r1, c1 = (int(np.ceil(a.max() + pad)) for a in (rows, cols))
+    top, front = hi[0] - r0 * _STEP, lo[1] + c0 * _STEP
+    size = ((r1 - r0) * _STEP, (c1 - c0) * _STEP)
+    shape = tuple(int(np.ceil(a / _STEP)) for a in size)
+    rr, cc = np.mgrid[:shape[0], :shape[1]]
+    near_piece = cKDTree(piece * _COARSE - [r0, c0]).query(np.c_[rr.ravel(), cc.ravel()],
+                                                           distance_upper_bound=pad)[0] <= pad
+    rim, first = ear_rim(surface, top, front, size, side, only=near_piece.reshape(shape))
+    px = _rim_piece(rim, np.c_[(top - guides[:, 1]) / _STEP, (guides[:, 2] - front) / _STEP], _NEAR / _STEP)
+    return None if px is None else (px, first)
+
+
 def ears_by_outline(hits: dict[str, Hit], surface: _Surface, confidence: float = 0.6) -> dict[str, Hit]:
     """``hits`` with the ear points the fit guessed (``how`` ``"shape"``) placed on the ear's
     free rim (see the module docstring; ``how`` ``"ear rim"``).
@@ -165,10 +208,11 @@ def ears_by_outline(hits: dict[str, Hit], surface: _Surface, confidence: float =
         # The grid spans every point of the ear there is (the joins are its front), and more.
         every = np.array([hits[r[k]].point for r in EAR_RULES + _JOINS if r[k] in hits])
         lo, hi = every[:, 1:].min(axis=0) - _MARGIN, every[:, 1:].max(axis=0) + _MARGIN
-        rim, first = ear_rim(surface, hi[0], lo[1], hi - lo, side)
-        guides_px = np.c_[(hi[0] - g[:, 1]) / _STEP, (g[:, 2] - lo[1]) / _STEP]
-        px = _rim_piece(rim, guides_px, _NEAR / _STEP)
-        if px is None or (px[:, 0].max() - px[:, 0].min()) * _STEP < _MIN_HEIGHT:
+        found = _fine_rim(surface, hi, lo, g, side)
+        if found is None:
+            continue
+        px, first = found
+        if (px[:, 0].max() - px[:, 0].min()) * _STEP < _MIN_HEIGHT:
             continue
         at = rim_points(px)
         for rule in todo:

@@ -381,3 +381,27 @@ def test_guessed_ear_points_go_to_the_ears_free_rim():
     bald = _Surface(Head({"skin": Part("skin", np.asarray(skull.vertices), np.asarray(skull.faces))}))
     kept = ears_by_outline(hits, bald)
     assert all(kept[i] is hits[i] for i in hits)
+
+
+def test_the_ears_rim_from_two_passes_is_the_full_grids():
+    # The rays are the marking's slowest step: a coarse pass finds the rim's piece and the
+    # fine grid casts only near it. The piece must be the one every ray of the fine grid gives.
+    from scipy.spatial import cKDTree
+
+    from recon.mark.ears import _STEP, _fine_rim, _rim_piece, ear_rim
+    from recon.mark.lift import _Surface
+
+    skull = trimesh.creation.icosphere(subdivisions=4, radius=0.08)
+    ear = trimesh.creation.cylinder(radius=0.028, height=0.003, sections=48)  # a round flap off the skull
+    ear.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (0.0, 1.0, 0.0)))
+    ear.apply_translation((0.0865, 0.0, -0.01))
+    both = trimesh.util.concatenate([skull, ear])
+    surface = _Surface(Head({"skin": Part("skin", np.asarray(both.vertices), np.asarray(both.faces))}))
+    guides = np.array([[0.08, 0.024, -0.012], [0.08, -0.004, -0.034], [0.08, -0.024, -0.006]])
+    lo, hi = np.array([-0.045, -0.055]), np.array([0.045, 0.035])  # (y, z) as ears_by_outline spans them
+    px, first = _fine_rim(surface, hi, lo, guides, 1.0)
+    rim, first_all = ear_rim(surface, hi[0], lo[1], hi - lo, 1.0)
+    whole = _rim_piece(rim, np.c_[(hi[0] - guides[:, 1]) / _STEP, (guides[:, 2] - lo[1]) / _STEP], 0.012 / _STEP)
+    assert whole is not None and len(px) == len(whole) > 1000
+    a, b = first[tuple(px.T)], first_all[tuple(whole.T)]
+    assert np.isfinite(a).all() and cKDTree(b).query(a)[0].max() < 1e-9
