@@ -192,6 +192,15 @@ def lip_sides(head: Head, hits: Mapping[str, Hit], reach: float = _LIP_CLAIM) ->
     return nearest_seed_labels(edge_graph(skin.vertices, skin.triangles), seeds, sign, reach)
 
 
+def _lips(head: Head, hits: Mapping[str, Hit], surface: _Surface | None) -> tuple[_Surface, np.ndarray] | None:
+    """The surface (``surface``, or the head's) and :func:`lip_sides`, or None when the head
+    has no skin or no lip is found."""
+    if "skin" not in head.parts:
+        return None
+    sides = lip_sides(head, hits)
+    return (surface or _Surface(head), sides) if sides.any() else None
+
+
 def lips_on_their_own_side(head: Head, hits: dict[str, Hit], surface: _Surface | None = None) -> dict[str, Hit]:
     """``hits`` with each inner lip point (:data:`INNER_LIP_SIDE`) on a triangle of its own lip.
 
@@ -202,12 +211,10 @@ def lips_on_their_own_side(head: Head, hits: dict[str, Hit], surface: _Surface |
     (:func:`lip_sides`) moves to the closest point among the triangles wholly on its own;
     its confidence and ``how`` are kept.
     """
-    if "skin" not in head.parts:
+    found = _lips(head, hits, surface)
+    if found is None:
         return hits
-    surface = surface or _Surface(head)
-    sides = lip_sides(head, hits)
-    if not sides.any():
-        return hits
+    surface, sides = found
     skin = head.parts["skin"]
     mine = np.flatnonzero(surface.part_of == surface.names.index("skin"))  # the skin's triangles among all parts'
     out = dict(hits)
@@ -270,13 +277,10 @@ def inner_lip_halfway(head: Head, hits: dict[str, Hit], surface: _Surface | None
     opening's rims) as seen from the front, each on its own lip. Where a scan finds no
     such change (no lips, too few points), the points are left as they are.
     """
-    need = ("2.2", "2.3", "8.1", "8.2")
-    if "skin" not in head.parts or not all(i in hits for i in need):
+    found = _lips(head, hits, surface) if all(i in hits for i in ("2.2", "2.3", "8.1", "8.2")) else None
+    if found is None:
         return hits
-    surface = surface or _Surface(head)
-    sides = lip_sides(head, hits)
-    if not sides.any():
-        return hits
+    surface, sides = found
     skin = head.parts["skin"]
     skin_index = surface.names.index("skin")
     mid_x = 0.5 * (hits["2.2"].point[0] + hits["2.3"].point[0])
