@@ -63,7 +63,8 @@ def play_file(head, player, checks, stream) -> dict[str, float]:
     from fmc.conformance import HEAD_TURN_FAPS, eyeball_centre_shift, fp_conformance, lid_overlap, region_over_fp
     from fmc.limits import Limits
 
-    limits = Limits(head)
+    # The player's own limits when it has them (they read the tables once per head).
+    limits = player.decode.limits or Limits(head)
 
     held = stream.held()
     shift = stretch = overlap = 0.0
