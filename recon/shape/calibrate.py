@@ -151,7 +151,10 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
     and the rest fitted again, the worst first, until all agree; the dropped points are
     listed in :attr:`Calibration.dropped` and take their missing coordinates as unmarked
     points do. Only a disagreement of the face's core (:data:`CORE_GROUPS`) stays an error:
-    there the photos, not a point, are wrong. Without it (marked points) any disagreement
+    there the photos, not a point, are wrong. A core point past the tolerance is judged
+    again with the heights fitted to the core alone (stray points elsewhere pull the fit of
+    every height): if the core agrees with itself, the worst point off it is dropped, or,
+    with none past the tolerance, the core's fit is kept. Without it (marked points) any disagreement
     is an error naming the worst points.
 
     Parameters
@@ -201,14 +204,27 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
             res = e.residual_mm
             worst = max(res, key=lambda i: abs(res[i]))
             if is_core(worst):
-                raise HeightsDisagree(e.residual_mm, e.what + f" (after dropping {', '.join(dropped) or 'nothing'})",
-                                      where=e.where, fix="the face's core points (eyes, nose, mouth, chin) cannot "
-                                                         "disagree by this much on the same face: check that the two "
-                                                         "photos show the same person in the same pose, and their "
-                                                         "points (recon annotate)") from None
-            dropped[worst] = {"view": _drop(worst, front, side, confidence),
-                              "disagreement_mm": round(float(e.residual_mm[worst]), 1)}
-            continue
+                # Points off the core (an ear on the hair) pull the fit of every height and
+                # can push a core point past the tolerance: the core is blamed only when it
+                # disagrees with itself, the heights fitted to it alone.
+                try:
+                    cal = _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, height_tol_mm,
+                                     confidence, core_fit=True)
+                except HeightsDisagree as against_core:
+                    e, res = against_core, against_core.residual_mm
+                    worst = max(res, key=lambda i: abs(res[i]))
+                else:
+                    worst = None
+            if worst is not None:
+                if is_core(worst):
+                    raise HeightsDisagree(e.residual_mm, e.what + f" (after dropping {', '.join(dropped) or 'nothing'})",
+                                          where=e.where, fix="the face's core points (eyes, nose, mouth, chin) cannot "
+                                                             "disagree by this much on the same face: check that the "
+                                                             "two photos show the same person in the same pose, and "
+                                                             "their points (recon annotate)") from None
+                dropped[worst] = {"view": _drop(worst, front, side, confidence),
+                                  "disagreement_mm": round(float(res[worst]), 1)}
+                continue
         cal.dropped = dropped
         if drop_outliers:
             _skull_prior(cal, generic, under_hair)
@@ -295,14 +311,20 @@ def _drop(i: str, front: dict, side: dict, confidence: dict) -> str:
     return view
 
 
-def _weights(shared: list[str], side_any_label: dict[str, str], confidence: dict) -> np.ndarray:
-    """(len(shared),) weights of the height fit: the less sure view's confidence, at least 0.1."""
+def _weights(shared: list[str], side_any_label: dict[str, str], confidence: dict, core_only: bool = False
+             ) -> np.ndarray:
+    """(len(shared),) weights of the height fit: the less sure view's confidence, at least 0.1
+    (with ``core_only``, 0 off the face's core)."""
     w = [min(confidence["front"].get(i, 1.0), confidence["side"].get(side_any_label[i], 1.0)) for i in shared]
-    return np.sqrt(np.clip(np.asarray(w, float), 0.1, 1.0))
+    w = np.sqrt(np.clip(np.asarray(w, float), 0.1, 1.0))
+    return w * np.array([is_core(i) for i in shared]) if core_only else w
 
 
-def _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, height_tol_mm, confidence):
-    """One calibration of the given points (see :func:`calibrate`)."""
+def _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, height_tol_mm, confidence,
+               core_fit: bool = False):
+    """One calibration of the given points (see :func:`calibrate`); with ``core_fit`` the
+    heights are fitted to the face's core points alone (the others are still placed, and
+    judged against them)."""
     front = _as_points(front, "front")
     side = _as_points(side, "side")
     _check_inside(front, front_size, "front")
@@ -358,7 +380,7 @@ def _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, he
         sf = ipd / ipd_px
         X = {i: (p[0] - x_mid) * sf for i, p in fu.items()}
         Yf = {i: -p[1] * sf for i, p in fu.items()}
-        a, c, b, resid = _fit_heights(shared, Yf, side_any, _weights(shared, label, confidence))
+        a, c, b, resid = _fit_heights(shared, Yf, side_any, _weights(shared, label, confidence, core_fit))
         ss = float(np.hypot(a, c))
         # The side photo's plane by a similarity: heights a v + c u + b, depths at right
         # angles (c = 0 when the head did not nod between the photos).
@@ -368,7 +390,7 @@ def _calibrate(front, side, generic, ipd_mm, focal_px, front_size, side_size, he
     else:
         X, Yf, Z, Ys, resid, scales, sin_yaw = _perspective(
             front, side_any, generic, ipd, focal_px, front_size, side_size, roll, facing, visible, shared,
-            _weights(shared, label, confidence))
+            _weights(shared, label, confidence, core_fit))
     # The front photo's turn: x seen there is x + z sin(yaw) + c, and every length is too
     # long by 1 / cos(yaw) (the pupils look closer together than the IPD given).
     # (The perspective branch takes the turn out as it goes.)

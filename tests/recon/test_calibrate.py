@@ -189,6 +189,30 @@ def test_a_disagreeing_core_point_stays_an_error_naming_the_photos():
                   focal_px=FOCAL, drop_outliers=True)
 
 
+def test_the_core_is_blamed_only_when_it_disagrees_with_itself():
+    from mpeg4.generic_head import load_generic_head
+    from recon.shape.calibrate import HeightsDisagree
+    from recon.shape.core_points import is_core
+
+    generic = load_generic_head()
+    _, views, size = _example_views()
+    cam = dict(front_size=size["front"], side_size=size["side"], focal_px=FOCAL)
+    # The chin 24 px low in the side photo (about 6 mm against the core's own fit) and the
+    # forehead's points 20 px low there: together they pull the fit of every height until
+    # the chin alone is past the 8 mm tolerance.
+    side = dict(views["side"])
+    side["2.10"] = side["2.10"] + [0.0, 24.0]
+    for i in ("11.1", "11.3", "11.4", "11.5", "11.6", "4.3", "4.5"):
+        side[i] = side[i] + [0.0, 20.0]
+    with pytest.raises(HeightsDisagree, match=r"disagree: 2\.10 by -"):  # reviewed: as before
+        calibrate(views["front"], side, generic, **cam)
+    # Unreviewed: the core's own heights agree, so the chin is not blamed and nothing is
+    # dropped (no point is 8 mm from the core's fit).
+    cal = calibrate(views["front"], side, generic, **cam, drop_outliers=True)
+    assert cal.dropped == {}
+    assert max(abs(r) for i, r in cal.height_residual_mm.items() if is_core(i)) < 8
+
+
 def test_fit_head_drops_only_for_unreviewed_points_and_records_them():
     from recon.shape.fit import fit_head
 
