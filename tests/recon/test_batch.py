@@ -143,16 +143,23 @@ def test_a_dask_local_cluster_gives_identical_heads(people, local_run, tmp_path)
     assert all(w.split(":")[1] != str(os.getpid()) for w in workers)  # built on the cluster's processes
     # One worker thread against the local run's threads: the same heads but for the order
     # of floating-point sums (BLAS and OpenCV split them by thread; measured: texture
-    # coordinates 6e-9 apart on one machine, identical on another), so within a micrometre.
+    # coordinates 6e-9 apart on one machine, identical on another), so within a micrometre,
+    # but for the odd vertex near one of the build's decisions (which triangle a point lies
+    # on, where an iterative fit stops): one z of 44424 was 10 micrometres off on an AVX-512
+    # machine, still a hundredth of the build's own accuracy.
     for pid in ("p1", "p2", "p3", "p4"):
         _same_json(json.loads((out / pid / "head.fdp.json").read_text()),
                    json.loads((out_local / pid / "head.fdp.json").read_text()), pid)
         a, b = _parts(out / pid / "head.glb"), _parts(out_local / pid / "head.glb")
         assert a.keys() == b.keys()
         for name in a:
-            np.testing.assert_allclose(a[name][0], b[name][0], atol=1e-6, rtol=0)
+            for k in (0, 2):  # positions (m), texture coordinates
+                if a[name][k] is None or b[name][k] is None:
+                    assert a[name][k] is b[name][k], (pid, name, k)
+                    continue
+                apart = np.abs(a[name][k] - b[name][k])
+                assert np.mean(apart > 1e-6) < 1e-3 and apart.max() < 1e-4, (pid, name, k, apart.max())
             np.testing.assert_array_equal(a[name][1], b[name][1])
-            np.testing.assert_allclose(a[name][2], b[name][2], atol=1e-6, rtol=0)
     errors = {r["id"]: r["error"] for r in report.failed}
     assert errors == {r["id"]: r["error"] for r in local_run[1].failed}
 
