@@ -44,6 +44,13 @@ a contact sheet (photo beside render, per view and person) under ``test-artifact
 Run: ``python3 benchmarks/real_photos.py [FOLDER ...] [--with-other-sides] [--people N]``
 (default: ``../shared/data/real_photos/pairs``). ``--with-other-sides`` also builds each
 person from ``side_other`` as the side photo.
+
+``--jitter PX [--seeds N]``: how much each figure owes to chance. Each pair is built again N
+times with the face mesh's landmarks moved by Gaussian noise of PX pixels (a fifth of a
+pixel is about what another CPU's kernels change), and ``stability_<figure>_range[person]``
+is the spread (largest minus smallest) of the figure over the unperturbed build and the N
+others; ``stability_<figure>_range`` the median over people. A figure whose spread is
+larger than the change being measured says nothing about that change.
 """
 
 from __future__ import annotations
@@ -349,6 +356,9 @@ def main(argv=None) -> int:
                          "and each portrait under --portraits")
     ap.add_argument("--portraits", type=Path, nargs="*", default=[PORTRAITS],
                     help="folders of frontal portraits for --front-only (every photo in them and their subfolders)")
+    ap.add_argument("--jitter", type=float, default=0.0,
+                    help="also rebuild each pair with this much noise on the face mesh's landmarks, pixels")
+    ap.add_argument("--seeds", type=int, default=3, help="rebuilds per pair for --jitter")
     args = ap.parse_args(argv)
     from recon.evaluate.machine import describe_machine
 
@@ -392,6 +402,8 @@ def main(argv=None) -> int:
     print(f"# contact sheet: {args.sheet}")
     if args.front_only:
         front_only(todo, args, rec, results)
+    if args.jitter > 0:
+        stability(todo, args, rec, results)
 
     def median(key):
         vals = [f[key] for f in results.values() if key in f and np.isfinite(f[key])]
@@ -421,6 +433,47 @@ def main(argv=None) -> int:
           f"{median('seconds_shape'):.1f}, texture {median('seconds_texture'):.1f}, export "
           f"{median('seconds_export'):.1f}; medians, texture {args.texture_size} px)")
     return 0
+
+
+#: The figures ``--jitter`` follows.
+STABILITY_FIGURES = ("point_agreement_kept_side_ipd_pct", "profile_line_ipd_pct", "silhouette_iou_side",
+                     "profile_line_refit_ipd_pct")
+
+
+def stability(todo, args, rec: Recogniser, results: dict) -> None:
+    """``--jitter``: each pair rebuilt with noise on the face mesh's landmarks; prints the
+    spread of :data:`STABILITY_FIGURES` per person and its median."""
+    import recon.landmarks.front as front_module
+    import recon.landmarks.models as models
+
+    exact = models.face_landmarks
+    spreads = {key: [] for key in STABILITY_FIGURES}
+    try:
+        for name, front, side, other in [t for t in todo if "+" not in t[0]]:
+            runs = [results[name]]
+            for seed in range(1, args.seeds + 1):
+                rng = np.random.default_rng(seed)
+
+                def noisy(image, rng=rng):
+                    return [f + np.c_[rng.normal(0.0, args.jitter, (len(f), 2)), np.zeros(len(f))]
+                            for f in exact(image)]
+
+                models.face_landmarks = front_module.face_landmarks = noisy
+                with tempfile.TemporaryDirectory() as tmp:
+                    fig, _ = measure(name, front, side, None, Path(tmp) / name, rec, args.texture_size,
+                                     lambda _: None)
+                runs.append(fig)
+            print(f"stability_built[{name}]: {sum(f['built'] for f in runs)} of {len(runs)}")
+            for key in STABILITY_FIGURES:
+                vals = [f[key] for f in runs if isinstance(f.get(key), float) and np.isfinite(f[key])]
+                if len(vals) > 1:
+                    spreads[key].append(float(np.ptp(vals)))
+                    print(f"stability_{key}_range[{name}]: {np.ptp(vals):.3f} ({min(vals):.3f} to {max(vals):.3f})")
+    finally:
+        models.face_landmarks = front_module.face_landmarks = exact
+    for key, v in spreads.items():
+        print(f"stability_{key}_range: {np.median(v) if v else float('nan'):.3f} (noise {args.jitter:g} px, "
+              f"{args.seeds} rebuilds)")
 
 
 def worst(rows, key) -> float:
