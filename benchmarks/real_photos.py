@@ -45,7 +45,10 @@ Run: ``python3 benchmarks/real_photos.py [FOLDER ...] [--with-other-sides] [--pe
 (default: ``../shared/data/real_photos/pairs``). ``--with-other-sides`` also builds each
 person from ``side_other`` as the side photo.
 
-``--jitter PX [--seeds N]``: how much each figure owes to chance. Each pair is built again N
+``--jitter PX [--seeds N]``: how much each figure owes to chance (with ``--front-only``,
+also the unseen profile's line judged N more times with that noise on the judge's own
+detection, ``front_only_profile_line_ipd_pct_range[person]``, and the median over people of
+each one's median, ``front_only_profile_line_ipd_pct_jitter``). Each pair is built again N
 times with the face mesh's landmarks moved by Gaussian noise of PX pixels (a fifth of a
 pixel is about what another CPU's kernels change), and ``stability_<figure>_range[person]``
 is the spread (largest minus smallest) of the figure over the unperturbed build and the N
@@ -56,6 +59,7 @@ larger than the change being measured says nothing about that change.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 import tempfile
 import time
@@ -279,6 +283,7 @@ def measure_front_only(name, front, side, out: Path, rec: Recogniser, texture_si
         return fig, pics
     fig.update(built=1, seconds=round(time.perf_counter() - t0, 1))
     res = built[0]
+    fig["_head"] = res.head
     fig["glasses"] = ",".join(res.skin.glasses) or "none"
     head = res.head
     fit = head.metadata["fit"]
@@ -440,40 +445,57 @@ STABILITY_FIGURES = ("point_agreement_kept_side_ipd_pct", "profile_line_ipd_pct"
                      "profile_line_refit_ipd_pct")
 
 
-def stability(todo, args, rec: Recogniser, results: dict) -> None:
-    """``--jitter``: each pair rebuilt with noise on the face mesh's landmarks; prints the
-    spread of :data:`STABILITY_FIGURES` per person and its median."""
+@contextlib.contextmanager
+def noisy_face_mesh(px: float, seed: int):
+    """The face mesh's landmarks moved by Gaussian noise of ``px`` pixels while inside."""
     import recon.landmarks.front as front_module
     import recon.landmarks.models as models
 
     exact = models.face_landmarks
-    spreads = {key: [] for key in STABILITY_FIGURES}
+    rng = np.random.default_rng(seed)
+
+    def noisy(image):
+        return [f + np.c_[rng.normal(0.0, px, (len(f), 2)), np.zeros(len(f))] for f in exact(image)]
+
+    models.face_landmarks = front_module.face_landmarks = noisy
     try:
-        for name, front, side, other in [t for t in todo if "+" not in t[0]]:
-            runs = [results[name]]
-            for seed in range(1, args.seeds + 1):
-                rng = np.random.default_rng(seed)
-
-                def noisy(image, rng=rng):
-                    return [f + np.c_[rng.normal(0.0, args.jitter, (len(f), 2)), np.zeros(len(f))]
-                            for f in exact(image)]
-
-                models.face_landmarks = front_module.face_landmarks = noisy
-                with tempfile.TemporaryDirectory() as tmp:
-                    fig, _ = measure(name, front, side, None, Path(tmp) / name, rec, args.texture_size,
-                                     lambda _: None)
-                runs.append(fig)
-            print(f"stability_built[{name}]: {sum(f['built'] for f in runs)} of {len(runs)}")
-            for key in STABILITY_FIGURES:
-                vals = [f[key] for f in runs if isinstance(f.get(key), float) and np.isfinite(f[key])]
-                if len(vals) > 1:
-                    spreads[key].append(float(np.ptp(vals)))
-                    print(f"stability_{key}_range[{name}]: {np.ptp(vals):.3f} ({min(vals):.3f} to {max(vals):.3f})")
+        yield
     finally:
         models.face_landmarks = front_module.face_landmarks = exact
+
+
+def stability(todo, args, rec: Recogniser, results: dict) -> None:
+    """``--jitter``: each pair rebuilt with noise on the face mesh's landmarks; prints the
+    spread of :data:`STABILITY_FIGURES` per person and its median."""
+    spreads = {key: [] for key in STABILITY_FIGURES}
+    for name, front, side, other in [t for t in todo if "+" not in t[0]]:
+        runs = [results[name]]
+        for seed in range(1, args.seeds + 1):
+            with noisy_face_mesh(args.jitter, seed), tempfile.TemporaryDirectory() as tmp:
+                fig, _ = measure(name, front, side, None, Path(tmp) / name, rec, args.texture_size, lambda _: None)
+            runs.append(fig)
+        print(f"stability_built[{name}]: {sum(f['built'] for f in runs)} of {len(runs)}")
+        for key in STABILITY_FIGURES:
+            vals = [f[key] for f in runs if isinstance(f.get(key), float) and np.isfinite(f[key])]
+            if len(vals) > 1:
+                spreads[key].append(float(np.ptp(vals)))
+                print(f"stability_{key}_range[{name}]: {np.ptp(vals):.3f} ({min(vals):.3f} to {max(vals):.3f})")
     for key, v in spreads.items():
         print(f"stability_{key}_range: {np.median(v) if v else float('nan'):.3f} (noise {args.jitter:g} px, "
               f"{args.seeds} rebuilds)")
+
+
+def unseen_spread(head, front, side, args) -> list[float]:
+    """``--front-only`` with ``--jitter``: the unseen profile's line judged again with the
+    noise on the face mesh of the judge's own detection (the build is left as it is)."""
+    vals = []
+    for seed in range(1, args.seeds + 1):
+        with noisy_face_mesh(args.jitter, seed):
+            try:
+                vals.append(float(unseen_figures(head, front, side)[0]))
+            except Exception as e:  # noqa: BLE001 - a refused detection is one draw less
+                print(f"# unseen profile not judged (seed {seed}): {e}")
+    return vals
 
 
 def worst(rows, key) -> float:
@@ -505,6 +527,13 @@ def front_only(todo, args, rec: Recogniser, two_photo: dict) -> None:
                 if not key.startswith("_"):
                     print(f"front_only_{key}[{name}]: {v:.3f}" if isinstance(v, float) else
                           f"front_only_{key}[{name}]: {v}", flush=True)
+            if args.jitter > 0 and side is not None and "profile_line_ipd_pct" in fig:
+                vals = [fig["profile_line_ipd_pct"]] + unseen_spread(fig["_head"], front, side, args)
+                fig["profile_line_jitter_median"] = float(np.median(vals))
+                print(f"front_only_profile_line_ipd_pct_range[{name}]: {np.ptp(vals):.3f} ({min(vals):.3f} to "
+                      f"{max(vals):.3f}, median {np.median(vals):.3f}; the judge's detection with "
+                      f"{args.jitter:g} px of noise)", flush=True)
+            fig.pop("_head", None)
     path = args.sheet.with_name(args.sheet.stem + "_front_only.png")
     contact_sheet(sheet, path)
     print(f"# front-only contact sheet: {path}")
@@ -521,6 +550,9 @@ def front_only(todo, args, rec: Recogniser, two_photo: dict) -> None:
         print(f"front_only_{key}: {median(pairs, key):.3f} (two photos: {median(same, key):.3f}"
               + (f"; through a camera fitted as here: {median(same, 'profile_line_refit_ipd_pct'):.3f})"
                  if key == "profile_line_ipd_pct" else ")"))
+    if args.jitter > 0:
+        print(f"front_only_profile_line_ipd_pct_jitter: {median(pairs, 'profile_line_jitter_median'):.3f} (the "
+              f"median over people of each one's median over {args.seeds + 1} judgements)")
     for key in ("identity_distance", "skin_delta_e", "skin_delta_e_relit", "silhouette_iou_front",
                 "point_agreement_front_ipd_pct"):
         print(f"front_only_portraits_{key}: {median(alone, key):.3f}")
