@@ -213,6 +213,8 @@ def calibrate(front: Mapping[str, np.ndarray], side: Mapping[str, np.ndarray], g
                 except HeightsDisagree as against_core:
                     e, res = against_core, against_core.residual_mm
                     worst = max(res, key=lambda i: abs(res[i]))
+                except InputError:
+                    pass  # too few core points to fit alone: the core point stays blamed
                 else:
                     worst = None
             if worst is not None:
