@@ -488,12 +488,14 @@ def stability(todo, args, rec: Recogniser, results: dict) -> None:
 def unseen_spread(head, front, side, args) -> list[float]:
     """``--front-only`` with ``--jitter``: the unseen profile's line judged again with the
     noise on the face mesh of the judge's own detection (the build is left as it is)."""
+    from mpeg4.errors import InputError
+
     vals = []
     for seed in range(1, args.seeds + 1):
         with noisy_face_mesh(args.jitter, seed):
             try:
                 vals.append(float(unseen_figures(head, front, side)[0]))
-            except Exception as e:  # noqa: BLE001 - a refused detection is one draw less
+            except InputError as e:  # a refused detection is one draw less
                 print(f"# unseen profile not judged (seed {seed}): {e}")
     return vals
 
