@@ -6,7 +6,7 @@ import pytest
 
 from fmc.author import author_from_shapes
 from fmc.conformance import SurfaceChecks
-from fmc.unfold import CORNER_PAIRS, EXTENT, KEPT, unfold_offsets, unfold_tables
+from fmc.unfold import CORNER_PAIRS, EXTENT, KEPT, unfold_offsets, unfold_tables, unfold_targets
 from mpeg4 import apply_fat
 from mpeg4.generic_head import load_generic_head
 from mpeg4.surface import inverted_triangles
@@ -132,3 +132,25 @@ def test_the_lip_corners_stretches_are_unfolded_together(separated):
                 for fp in fps:
                     np.testing.assert_allclose(head.fp_position(fp, b), head.fp_position(fp, a), atol=1e-9,
                                                err_msg=f"FAP {n} at {v} moved {fp} differently")
+
+
+def test_a_whole_target_is_unfolded_unless_its_folds_are_allowed():
+    """A morph target that drags a patch of the cheek across its neighbours is relaxed
+    until nothing turns over, its feature points' motion kept exactly; allowed as many
+    folds as it makes (a source's own corrective shape), it is left as it is."""
+    head = load_generic_head()
+    rest = head.skin.vertices
+    centre = head.fp_position("5.3")
+    near = np.linalg.norm(rest - centre, axis=1)
+    d = np.zeros_like(rest)
+    # A 6 mm disc pushed 8 mm sideways: its rim folds over the skin beside it.
+    d[near < 0.006, 0] = 0.008
+    checks = SurfaceChecks(head)
+    before = checks.inverted(rest + d)
+    assert before > 0
+    out, left = unfold_targets(head, {"drag": d})
+    assert checks.inverted(rest + out["drag"]) == 0 and not left
+    fps = [b.vertices[0] for b in head.feature_points.values() if b.part == "skin"]
+    np.testing.assert_array_equal(out["drag"][fps], d[fps])
+    kept, _ = unfold_targets(head, {"drag": d}, allowed={"drag": before})
+    assert kept["drag"] is d
