@@ -114,9 +114,9 @@ class Correspondence:
         ``unfold``, the folds the cloning adds are relaxed: a target whose skin motion turns
         a larger share of the target's triangles over than of the source's is relaxed
         (:func:`fmc.unfold.unfold_targets`) before the parts that follow the skin take
-        theirs. (What folds after that is not warned of: on an ICT identity of the tests, the same mesh as
-        the source's, the jaw's opening still turns 47 triangles over where its source turns
-        32 of the generic head's, which says nothing a user can act on.)"""
+        theirs. (What folds after that is not warned of: on an ICT identity of the tests,
+        the source's mesh, the jaw's opening still turns 47 triangles over where its source
+        turns 32 of the generic head's, which says nothing a user can act on.)"""
         names = list(targets)
         n_s = self.source.skin.n_vertices
         left_out = sorted({p for t in targets.values() for p, d in t.items()
