@@ -231,7 +231,8 @@ def feature_point_pins(source: Head, target: Head, source_part: str, target_part
     A point bound alike on both heads (as many vertices, the same weights: heads made from
     one generic head) is pinned vertex by vertex, which keeps each vertex's own motion; in
     any order the point itself moves as the source's. Other bindings are left alone (one
-    value spread over several vertices would flatten the motion there).
+    value spread over several vertices would flatten the motion there; on the skin,
+    :func:`fmc.clone.skin.shift_bound_points` then shifts their vertices alike).
     """
     pins: dict[int, dict[int, float]] = {}
     for fp, b in target.feature_points.items():

@@ -15,7 +15,7 @@ from mpeg4.head import Head
 from .interpolate import gradient_operator, interpolation_matrix
 from .parts import feature_point_pins
 
-__all__ = ["skin_weights", "pin_feature_points"]
+__all__ = ["skin_weights", "pin_feature_points", "shift_bound_points"]
 
 # Source triangles spanning more angle than this cross the back of the head (where the
 # angle wraps) or surround the axis at the crown: in the plane they would cover the face.
@@ -26,12 +26,55 @@ def pin_feature_points(weights: sparse.csr_matrix, source: Head, target: Head) -
     """``weights`` with the target skin's feature points taking the source's exactly (the
     points are known to correspond; those between the triangulation's vertices, such as
     the inner lips and the chin boss, would otherwise miss by a little). See
-    :func:`fmc.clone.parts.feature_point_pins`."""
+    :func:`fmc.clone.parts.feature_point_pins`.
+
+    A point bound to several vertices of the target and otherwise than on the source (a
+    coarse mesh, the point inside a triangle) keeps its vertices' own motion, each shifted
+    by one common offset (:func:`shift_bound_points`): on the MediaPipe mask (468 vertices)
+    the vertices around a brow or cheek point, some millimetres from it, took three
+    quarters of the source point's motion, and the point moved as little.
+    """
     out = sparse.lil_matrix(weights)
     for v, cols in feature_point_pins(source, target, "skin", "skin").items():
         out.rows[v] = sorted(cols)
         out.data[v] = [cols[c] for c in sorted(cols)]
-    return out.tocsr()
+    return shift_bound_points(out.tocsr(), source, target)
+
+
+def shift_bound_points(weights: sparse.csr_matrix, source: Head, target: Head) -> sparse.csr_matrix:
+    """``weights`` (N_t, N_s) with each target skin point bound to several vertices, and
+    not alike on the source (:func:`fmc.clone.parts.feature_point_pins` leaves those),
+    moving exactly as the source's point.
+
+    Each such point ``f`` adds one offset ``λ_f`` (a row over the source's vertices) to all
+    of its vertices, so that their weighted sum is the source point's: the vertices keep
+    their differences (the local shape of the motion), and the weights of each row still
+    sum to one. Points sharing vertices are solved together (least squares).
+    """
+    points = []
+    for fp, b in target.feature_points.items():
+        a = source.feature_points.get(fp)
+        if a is None or a.part != "skin" or b.part != "skin" or len(b.vertices) == 1:
+            continue
+        if len(a.vertices) == len(b.vertices) and np.allclose(a.weights, b.weights, atol=1e-9):
+            continue
+        points.append((a, b))
+    if not points:
+        return weights
+    n_t, n_s = weights.shape
+    # (F, N_t) the targets' bindings and (F, N_s) the sources'.
+    bind_t = sparse.csr_matrix((np.concatenate([b.weights for _, b in points]),
+                                (np.repeat(np.arange(len(points)), [len(b.vertices) for _, b in points]),
+                                 np.concatenate([b.vertices for _, b in points]))), shape=(len(points), n_t))
+    bind_s = sparse.csr_matrix((np.concatenate([a.weights for a, _ in points]),
+                                (np.repeat(np.arange(len(points)), [len(a.vertices) for a, _ in points]),
+                                 np.concatenate([a.vertices for a, _ in points]))), shape=(len(points), n_s))
+    # (F, N_t) which vertices each offset moves: all of its point's, alike.
+    member = (bind_t > 0).astype(np.float64)
+    miss = (bind_s - bind_t @ weights).toarray()  # (F, N_s)
+    mix = (bind_t @ member.T).toarray()  # (F, F): how much of each offset reaches each point
+    offsets = np.linalg.lstsq(mix, miss, rcond=None)[0]
+    return (weights + sparse.csr_matrix(member.T @ sparse.csr_matrix(offsets))).tocsr()
 
 
 def skin_weights(source: Head, source_space: np.ndarray, aligned: np.ndarray, depth: np.ndarray,
