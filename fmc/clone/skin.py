@@ -35,21 +35,24 @@ def pin_feature_points(weights: sparse.csr_matrix, source: Head, target: Head) -
     quarters of the source point's motion, and the point moved as little.
     """
     out = sparse.lil_matrix(weights)
-    for v, cols in feature_point_pins(source, target, "skin", "skin").items():
+    pins = feature_point_pins(source, target, "skin", "skin")
+    for v, cols in pins.items():
         out.rows[v] = sorted(cols)
         out.data[v] = [cols[c] for c in sorted(cols)]
-    return shift_bound_points(out.tocsr(), source, target)
+    return shift_bound_points(out.tocsr(), source, target, held=list(pins))
 
 
-def shift_bound_points(weights: sparse.csr_matrix, source: Head, target: Head) -> sparse.csr_matrix:
+def shift_bound_points(weights: sparse.csr_matrix, source: Head, target: Head, held=()) -> sparse.csr_matrix:
     """``weights`` (N_t, N_s) with each target skin point bound to several vertices, and
     not alike on the source (:func:`fmc.clone.parts.feature_point_pins` leaves those),
-    moving exactly as the source's point.
+    moving as the source's point.
 
-    Each such point ``f`` adds one offset ``λ_f`` (a row over the source's vertices) to all
-    of its vertices, so that their weighted sum is the source point's: the vertices keep
-    their differences (the local shape of the motion), and the weights of each row still
-    sum to one. Points sharing vertices are solved together (least squares).
+    Each such point ``f`` adds one offset ``λ_f`` (a row over the source's vertices) to its
+    vertices but the ``held`` ones (pinned to another point), so that their weighted sum is
+    the source point's: the vertices keep their differences (the local shape of the
+    motion), and the weights of each row still sum to one. Points sharing vertices are
+    solved together, in the least-squares sense (on a coarse mesh two points may share a
+    triangle: what they cannot both have is left, not blown up).
     """
     points = []
     for fp, b in target.feature_points.items():
@@ -69,11 +72,13 @@ def shift_bound_points(weights: sparse.csr_matrix, source: Head, target: Head) -
     bind_s = sparse.csr_matrix((np.concatenate([a.weights for a, _ in points]),
                                 (np.repeat(np.arange(len(points)), [len(a.vertices) for a, _ in points]),
                                  np.concatenate([a.vertices for a, _ in points]))), shape=(len(points), n_s))
-    # (F, N_t) which vertices each offset moves: all of its point's, alike.
-    member = (bind_t > 0).astype(np.float64)
+    # (F, N_t) which vertices each offset moves: all of its point's, alike, but the held.
+    member = (bind_t > 0).astype(np.float64).tolil()
+    member[:, np.asarray(list(held), dtype=np.int64)] = 0.0
+    member = member.tocsr()
     miss = (bind_s - bind_t @ weights).toarray()  # (F, N_s)
     mix = (bind_t @ member.T).toarray()  # (F, F): how much of each offset reaches each point
-    offsets = np.linalg.lstsq(mix, miss, rcond=None)[0]
+    offsets = np.linalg.lstsq(mix, miss, rcond=1e-3)[0]
     return (weights + sparse.csr_matrix(member.T @ sparse.csr_matrix(offsets))).tocsr()
 
 

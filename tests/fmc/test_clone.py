@@ -607,3 +607,11 @@ def test_a_point_inside_a_coarse_triangle_moves_as_the_source_point():
     np.testing.assert_allclose(out[1] - out[2], w[1] - w[2], atol=1e-12)
     # A point on one vertex (pinned elsewhere) and vertices of no point are left alone.
     np.testing.assert_array_equal(out[[0, 5, 6]], w[[0, 5, 6]])
+    # So is a vertex pinned to another point: the others of each point make up for it.
+    held = shift_bound_points(sparse.csr_matrix(w), source, target, held=[3]).toarray()
+    np.testing.assert_array_equal(held[3], w[3])
+    for fp in ("2.1", "2.2"):
+        a, b = source.feature_points[fp], target.feature_points[fp]
+        want = np.zeros(5)
+        want[list(a.vertices)] = a.weights
+        np.testing.assert_allclose(np.asarray(b.weights) @ held[list(b.vertices)], want, atol=1e-12)
