@@ -28,9 +28,9 @@ without eyeballs): MakeHuman 83.3 %, the mask 65.6 %; with the lip partners coun
 96.9 % and 72.9 %. Most of what was left came before this step: a point bound inside a
 coarse triangle took its vertices' motion, some millimetres from the source's point. With
 those vertices shifted so that the point moves as the source's
-(:func:`fmc.clone.skin.shift_bound_points`): MakeHuman 100 %, the mask 95.8 % (left: two
-of its ear FAPs, 0.53 and 0.58 of value × FAPU: the mask has no ears, and the marking
-crowds 10.1, 10.9 and 11.6 on one edge of its rim, 10.2 and 10.10 on one vertex).
+(:func:`fmc.clone.skin.shift_bound_points`): MakeHuman 100 %, the mask 97.9 % (left: the
+right ear's raise, 0.58 of value × FAPU: the mask has no ears, and the marking puts 10.2
+and 10.10 on one vertex of its rim, which takes 10.10's motion).
 """
 
 from __future__ import annotations

@@ -10,12 +10,16 @@ from __future__ import annotations
 import numpy as np
 from scipy import sparse
 
+from mpeg4.catalogue import FAPS
 from mpeg4.head import Head
 
 from .interpolate import gradient_operator, interpolation_matrix
 from .parts import feature_point_pins
 
-__all__ = ["skin_weights", "pin_feature_points", "shift_bound_points"]
+__all__ = ["OWN_POINTS", "skin_weights", "pin_feature_points", "shift_bound_points"]
+
+#: The feature points some low-level FAP moves as its own (its first point in the catalogue).
+OWN_POINTS = frozenset(f.feature_points[0] for n, f in FAPS.items() if n >= 3 and f.feature_points)
 
 # Source triangles spanning more angle than this cross the back of the head (where the
 # angle wraps) or surround the axis at the crown: in the plane they would cover the face.
@@ -47,6 +51,11 @@ def shift_bound_points(weights: sparse.csr_matrix, source: Head, target: Head, h
     not alike on the source (:func:`fmc.clone.parts.feature_point_pins` leaves those),
     moving as the source's point.
 
+    Only the points a FAP moves as its own (:data:`OWN_POINTS`): the others, such as the
+    jaw's angles 2.13/2.14, are held still by most tables while the skin around them moves
+    (:mod:`fmc.separate`), and shifted to hold still on the mask's coarse rim they dented
+    its jaw line whenever the mouth moved.
+
     Each such point ``f`` adds one offset ``λ_f`` (a row over the source's vertices) to its
     vertices but the ``held`` ones (pinned to another point), so that their weighted sum is
     the source point's: the vertices keep their differences (the local shape of the
@@ -57,7 +66,7 @@ def shift_bound_points(weights: sparse.csr_matrix, source: Head, target: Head, h
     points = []
     for fp, b in target.feature_points.items():
         a = source.feature_points.get(fp)
-        if a is None or a.part != "skin" or b.part != "skin" or len(b.vertices) == 1:
+        if fp not in OWN_POINTS or a is None or a.part != "skin" or b.part != "skin" or len(b.vertices) == 1:
             continue
         if len(a.vertices) == len(b.vertices) and np.allclose(a.weights, b.weights, atol=1e-9):
             continue
