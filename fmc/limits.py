@@ -19,7 +19,10 @@ played, and says what it changed:
 - **The midline** (:data:`MIDLINE_FAPS`): the brows' squeeze pulls each inner brow point
   (4.1, 4.2) towards the midline; it stops while the point keeps :data:`MIDLINE_KEEP` of
   its neutral distance from it (skin is left between the brows: a squeeze of 220 once moved
-  the skin between them 14 mm sideways, through the other brow's).
+  the skin between them 14 mm sideways, through the other brow's), or rather its innermost
+  vertex, for a point inside a triangle: MakeHuman's inner brow points lie in triangles
+  8 mm wide, which the squeeze moves whole (:func:`fmc.clone.skin.shift_bound_points`),
+  and their inner corners crossed the midline: 8 triangles turned over between the brows.
 - **Ranges** (:data:`RANGE_LIMITS`): the brows move at most a quarter of ENS0 either way (12
   mm on the generic head), the cheeks rise at most a quarter. Maximal frontalis
   contraction lifts the brow's middle by 7.6 to 9.0 mm on average (Cruz and Cruz, Arq.
@@ -128,7 +131,13 @@ class Limits:
             towards = -fap_unit(n, head.fapu) * FAPS[n].axis_vector[0]  # towards x = 0 per unit, metres
             x0 = float(head.fp_position(fp)[0]) if fp in head.feature_points else 0.0
             if x0 * towards > 0:  # positive values move the point towards the midline
-                self.midline[n] = (1.0 - MIDLINE_KEEP) * abs(x0) / abs(towards)
+                # The point's innermost vertex keeps the share: on a coarse mesh the point
+                # lies inside a triangle that reaches closer to the midline and moves with it.
+                b = head.feature_points[fp]
+                xs = np.abs(head.parts[b.part].vertices[list(b.vertices), 0])
+                inner = float(xs[np.sign(head.parts[b.part].vertices[list(b.vertices), 0]) == np.sign(x0)].min(
+                    initial=abs(x0)))
+                self.midline[n] = (1.0 - MIDLINE_KEEP) * min(abs(x0), inner) / abs(towards)
 
     def __call__(self, values: Mapping) -> tuple[dict, list[str]]:
         """One frame's values within the limits, and what was changed.

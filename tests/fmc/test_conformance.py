@@ -206,6 +206,27 @@ def test_the_brows_squeeze_stops_short_of_the_midline(shipped):
     assert Limits(shipped)({37: 60.0, 38: 60.0}) == ({37: 60.0, 38: 60.0}, [])
 
 
+def test_a_brow_point_inside_a_triangle_stops_with_its_innermost_vertex(shipped):
+    """An inner brow point bound inside a triangle (a coarse mesh) moves the triangle with
+    it: the squeeze stops while the corner nearest the midline keeps its share, not the
+    point (MakeHuman's triangles are 8 mm wide: their inner corners crossed the midline)."""
+    from fmc.limits import MIDLINE_KEEP, Limits
+    from mpeg4.head import FeaturePointBinding
+
+    head = shipped.copy()
+    skin = head.skin.vertices
+    v = head.feature_points["4.1"].vertices[0]
+    x0 = skin[v, 0]
+    # A vertex on the same side, 3-6 mm nearer the midline, shares the point's binding.
+    near = np.flatnonzero((np.sign(skin[:, 0]) == np.sign(x0)) & (np.abs(x0) - np.abs(skin[:, 0]) > 0.003)
+                          & (np.abs(x0) - np.abs(skin[:, 0]) < 0.006) & (np.linalg.norm(skin - skin[v], axis=1) < 0.008))
+    inner = near[np.argmin(np.abs(skin[near, 0]))]
+    head.feature_points["4.1"] = FeaturePointBinding("skin", (int(v), int(inner)), (0.9, 0.1))
+    unit = abs(Limits(shipped).midline[37] / ((1 - MIDLINE_KEEP) * abs(x0)))
+    assert Limits(head).midline[37] == pytest.approx((1 - MIDLINE_KEEP) * abs(skin[inner, 0]) * unit)
+    assert Limits(head).midline[38] == pytest.approx(Limits(shipped).midline[38])
+
+
 def test_the_limits_settle_all_pairs_at_once(shipped):
     """Limits are a projection: a frame they changed passes through them unchanged, however
     hard the contours are pushed into each other (lips meeting squeeze a lip past its own
