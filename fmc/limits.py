@@ -134,9 +134,8 @@ class Limits:
                 # The point's innermost vertex keeps the share: on a coarse mesh the point
                 # lies inside a triangle that reaches closer to the midline and moves with it.
                 b = head.feature_points[fp]
-                xs = np.abs(head.parts[b.part].vertices[list(b.vertices), 0])
-                inner = float(xs[np.sign(head.parts[b.part].vertices[list(b.vertices), 0]) == np.sign(x0)].min(
-                    initial=abs(x0)))
+                xs = head.parts[b.part].vertices[list(b.vertices), 0]
+                inner = float(np.abs(xs[np.sign(xs) == np.sign(x0)]).min(initial=abs(x0)))
                 self.midline[n] = (1.0 - MIDLINE_KEEP) * min(abs(x0), inner) / abs(towards)
 
     def __call__(self, values: Mapping) -> tuple[dict, list[str]]:
