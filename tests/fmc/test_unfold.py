@@ -6,7 +6,7 @@ import pytest
 
 from fmc.author import author_from_shapes
 from fmc.conformance import SurfaceChecks
-from fmc.unfold import CORNER_PAIRS, EXTENT, KEPT, unfold_offsets, unfold_tables, unfold_targets
+from fmc.unfold import CORNER_PAIRS, EXTENT, KEPT, corner_glue, unfold_offsets, unfold_tables, unfold_targets
 from mpeg4 import apply_fat
 from mpeg4.generic_head import load_generic_head
 from mpeg4.surface import inverted_triangles
@@ -154,3 +154,24 @@ def test_a_whole_target_is_unfolded_unless_its_folds_are_allowed():
     np.testing.assert_array_equal(out["drag"][fps], d[fps])
     kept, _ = unfold_targets(head, {"drag": d}, allowed={"drag": before})
     assert kept["drag"] is d
+
+
+def test_the_lips_corner_vertices_move_as_one():
+    """The generic head's corners hold each lip's vertex 0.06 mm apart: found as the
+    corner's other vertex, every shipped table moves it with the corner, and the lower
+    lip pushed out (FAP 16 at 340) no longer turns the sliver between them over (2 did)."""
+    from mpeg4.seams import merged_surface
+
+    head = load_generic_head(with_fat=True)
+    first, inverse, v, t = merged_surface(head.skin.vertices, head.skin.triangles)
+    glued = corner_glue(head, inverse, v, t)
+    assert len(glued) == 2
+    assert all(np.linalg.norm(v[a] - v[b]) < 1e-4 for a, b in glued.items())
+    base = {k: p.vertices for k, p in head.parts.items()}
+    checks = SurfaceChecks(head)
+    for n, value in ((16, 340.0), (5, -300.0), (12, 300.0), (3, 400.0)):
+        skin = apply_fat(head.fat, base, {n: value}, head.fapu)["skin"][first] - v
+        for a, b in glued.items():
+            np.testing.assert_allclose(skin[a], skin[b], atol=3e-6)  # two int16 quantisations (0.9 um each)
+    skin = apply_fat(head.fat, base, {16: 340.0}, head.fapu)["skin"]
+    assert checks.inverted(skin) == 0
