@@ -259,8 +259,8 @@ def clone_targets(source: Head, target: Head, names: Iterable[str] | None = None
     """The source's morph targets cloned onto the target, each relaxed where it turns the
     target's skin over more than the source's (:func:`fmc.unfold.unfold_targets`, feature
     points held; MakeHuman's targets on the generic head, ``benchmarks/foreign_heads.py``:
-    the jaw drop turned 356 triangles over and stretched an edge 197 times before, 219 and
-    11.5 after; the smile and the happy face 139 and 165 before, none after).
+    the jaw drop turned 356 triangles over and stretched an edge 197 times before, 220 and
+    11.8 after; the smile and the happy face 139 and 165 before, none after).
 
     Parameters
     ----------

@@ -126,7 +126,7 @@ def test_makehuman_is_marked_and_its_own_targets_clone_onto_the_generic_head(tmp
     width = lambda q: np.linalg.norm(q["8.3"] - q["8.4"])  # noqa: E731
     assert width(smile) - width(rest) > 0.003  # the smile widens the mouth
     # The folds the cloning adds are relaxed (fmc.unfold.unfold_targets): the smile turned
-    # 139 triangles over, none now; the jaw drop 356, 219 now (the rest under the chin).
+    # 139 triangles over, none now; the jaw drop 356, 220 now (the rest under the chin).
     raw = clone_targets(head, generic, unfold=False)
     folds = {}
     for name, targets in (("relaxed", cloned), ("raw", raw)):
