@@ -303,8 +303,8 @@ def corner_glue(head: Head, inverse: np.ndarray, vertices: np.ndarray, triangles
 class _Relaxer:
     """:func:`unfold_offsets` on one merged surface, called only for offsets that fold at
     one of their scales (the surface's bi-Laplacian built at the first such call). The
-    vertices glued to a lip corner (:func:`corner_glue`) take its motion first and are held
-    with it."""
+    vertices glued to a lip corner (:func:`corner_glue`) are held; the caller gives offsets
+    that move them with it (:meth:`glue`)."""
 
     def __init__(self, vertices: np.ndarray, triangles: np.ndarray, held: np.ndarray,
                  glued: dict[int, int] | None = None):
@@ -322,8 +322,8 @@ class _Relaxer:
         return out
 
     def __call__(self, offsets: np.ndarray, scales, **options) -> tuple[np.ndarray | None, int]:
-        """``(relaxed, still_inverted)``, or ``(None, 0)`` when ``offsets`` fold nowhere."""
-        offsets = self.glue(offsets)
+        """``(relaxed, still_inverted)``, or ``(None, 0)`` when ``offsets`` (already
+        :meth:`glue`\ d) fold nowhere."""
         if not inverted_triangles(self.v, self.t, offsets, scales).any():
             return None, 0
         self.q = bilaplacian(self.v, self.t) if self.q is None else self.q

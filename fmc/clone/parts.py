@@ -31,7 +31,7 @@ from mpeg4.head import Head
 from .regions import face_scale, mouth_scale, region_scales
 
 __all__ = ["PART_ROLES", "PartRef", "find_parts", "sphere_centre", "rigid_motion", "part_correspondence",
-           "feature_point_pins", "transfer_part_motion"]
+           "bound_alike", "feature_point_pins", "transfer_part_motion"]
 
 #: Role → the feature points that find it (first present wins).
 PART_ROLES = {
@@ -223,6 +223,12 @@ def part_correspondence(source: Head, s: PartRef, target: Head, t: PartRef, k: i
     return out.tocsr()
 
 
+def bound_alike(a, b) -> bool:
+    """Two :class:`mpeg4.head.FeaturePointBinding` with as many vertices and the same weights
+    (heads made from one generic head)."""
+    return len(a.vertices) == len(b.vertices) and np.allclose(a.weights, b.weights, atol=1e-9)
+
+
 def feature_point_pins(source: Head, target: Head, source_part: str, target_part: str) -> dict[int, dict[int, float]]:
     """Target vertex → {source vertex: weight} making the feature points on both parts
     correspond exactly.
@@ -244,7 +250,7 @@ def feature_point_pins(source: Head, target: Head, source_part: str, target_part
             for u, w in zip(a.vertices, a.weights):
                 cols[int(u)] = cols.get(int(u), 0.0) + w
             pins[int(b.vertices[0])] = cols
-        elif len(a.vertices) == len(b.vertices) and np.allclose(a.weights, b.weights, atol=1e-9):
+        elif bound_alike(a, b):
             for u, v in zip(a.vertices, b.vertices):
                 pins[int(v)] = {int(u): 1.0}
     return pins

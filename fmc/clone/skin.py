@@ -14,7 +14,7 @@ from mpeg4.catalogue import FAPS
 from mpeg4.head import Head
 
 from .interpolate import gradient_operator, interpolation_matrix
-from .parts import feature_point_pins
+from .parts import bound_alike, feature_point_pins
 
 __all__ = ["OWN_POINTS", "skin_weights", "pin_feature_points", "shift_bound_points"]
 
@@ -68,19 +68,14 @@ def shift_bound_points(weights: sparse.csr_matrix, source: Head, target: Head, h
         a = source.feature_points.get(fp)
         if fp not in OWN_POINTS or a is None or a.part != "skin" or b.part != "skin" or len(b.vertices) == 1:
             continue
-        if len(a.vertices) == len(b.vertices) and np.allclose(a.weights, b.weights, atol=1e-9):
-            continue
-        points.append((a, b))
+        if not bound_alike(a, b):
+            points.append((a, b))
     if not points:
         return weights
     n_t, n_s = weights.shape
     # (F, N_t) the targets' bindings and (F, N_s) the sources'.
-    bind_t = sparse.csr_matrix((np.concatenate([b.weights for _, b in points]),
-                                (np.repeat(np.arange(len(points)), [len(b.vertices) for _, b in points]),
-                                 np.concatenate([b.vertices for _, b in points]))), shape=(len(points), n_t))
-    bind_s = sparse.csr_matrix((np.concatenate([a.weights for a, _ in points]),
-                                (np.repeat(np.arange(len(points)), [len(a.vertices) for a, _ in points]),
-                                 np.concatenate([a.vertices for a, _ in points]))), shape=(len(points), n_s))
+    bind_t = _binding_rows([b for _, b in points], n_t)
+    bind_s = _binding_rows([a for a, _ in points], n_s)
     # (F, N_t) which vertices each offset moves: all of its point's, alike, but the held.
     member = (bind_t > 0).astype(np.float64).tolil()
     member[:, np.asarray(list(held), dtype=np.int64)] = 0.0
@@ -89,6 +84,13 @@ def shift_bound_points(weights: sparse.csr_matrix, source: Head, target: Head, h
     mix = (bind_t @ member.T).toarray()  # (F, F): how much of each offset reaches each point
     offsets = np.linalg.lstsq(mix, miss, rcond=1e-3)[0]
     return (weights + sparse.csr_matrix(member.T @ sparse.csr_matrix(offsets))).tocsr()
+
+
+def _binding_rows(bindings, n: int) -> sparse.csr_matrix:
+    """(len(bindings), n): each binding's weights on its vertices."""
+    return sparse.csr_matrix((np.concatenate([b.weights for b in bindings]),
+                              (np.repeat(np.arange(len(bindings)), [len(b.vertices) for b in bindings]),
+                               np.concatenate([b.vertices for b in bindings]))), shape=(len(bindings), n))
 
 
 def skin_weights(source: Head, source_space: np.ndarray, aligned: np.ndarray, depth: np.ndarray,

@@ -575,4 +575,3 @@ def test_contours_run_across_texture_seams():
         assert length[1] == pytest.approx(length[0], rel=1e-6), chain
         crossing += any(np.any(p >= skin.n_vertices) for p in cut)
     assert crossing >= 2  # the seam crosses the lip contours
-
