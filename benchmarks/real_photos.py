@@ -15,6 +15,10 @@ annotations, and measures the head against the photos (:mod:`recon.evaluate.real
   or back to the skull);
 - ``profile_line_ipd_pct``: the side photo's face-side outline from the brow to the chin
   against the rendered head's, mean distance in % IPD;
+- ``cheek_psnr_db``: the textured head relit as the side photo is lit (the shading the build
+  fitted to it) against that photo over the cheek, between the eye, the ear, the mouth and
+  the jaw (:func:`recon.evaluate.real_photos.cheek_psnr`): where the seam between the
+  photos' layers runs;
 - ``silhouette_iou_front``, ``silhouette_iou_side``: the rendered head against the photo's
   head region (hair counted, below the chin left out);
 - ``heldout_profile_line_ipd_pct``, ``heldout_silhouette_iou``: the same in ``side_other``,
@@ -241,6 +245,13 @@ def measure_view(fig: dict, pics: dict, head, cam, image: np.ndarray, pts: dict,
     fig[f"silhouette_iou_{view}"] = rp.silhouette_iou(region, mask, chin)
     if view == "side":
         fig["profile_line_ipd_pct"] = rp.profile_line(region, mask, pts, facing, ipd)
+        cheek = rp.cheek_box(pts, image.shape[:2])
+        shaded = rp.relit(albedo, lighting) if lighting is not None else albedo
+        if cheek is not None and shaded is not None:
+            import cv2
+
+            inside = cv2.erode((mask & region).astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
+            fig["cheek_psnr_db"] = rp.cheek_psnr(image, shaded, cheek & inside)
     else:
         fig["skin_delta_e"] = rp.skin_delta_e(image, albedo, mask, pts, ipd)
         if lighting is not None:
@@ -433,6 +444,7 @@ def main(argv=None) -> int:
     print(f"identity_closer_than_other_people: {sum(closer)} of {len(closer)}")
     print(f"skin_delta_e: {median('skin_delta_e'):.3f}")
     print(f"skin_delta_e_relit: {median('skin_delta_e_relit'):.3f}")
+    print(f"cheek_psnr_db: {median('cheek_psnr_db'):.2f}")
     print(f"skin_delta_e_worst: {worst(results.values(), 'skin_delta_e'):.3f}")
     print(f"build_seconds: {median('seconds'):.1f} (detection {median('seconds_detection'):.1f}, shape "
           f"{median('seconds_shape'):.1f}, texture {median('seconds_texture'):.1f}, export "

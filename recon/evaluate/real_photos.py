@@ -13,7 +13,10 @@ a photo the build never saw, a camera fitted to the points detected on it):
   (forehead, nose, lips, chin: the part no hair hides) against the rendered head's, mean
   distance in % IPD;
 - :func:`skin_delta_e`: CIEDE2000 between the median skin colour of the photo (cheeks and
-  forehead) and the texture's there, rendered unlit.
+  forehead) and the texture's there, rendered unlit;
+- :func:`cheek_psnr`: in a profile, the textured head relit as the photo is lit against the
+  photo over the cheek (between the eye, the ear, the mouth and the jaw), PSNR: where the
+  side photo's layer meets the front photo's, the seam a texture shows first.
 
 ``benchmarks/real_photos.py`` runs them over folders of people.
 """
@@ -30,7 +33,7 @@ from mpeg4.preview import head_meshes
 from mpeg4.render import render
 
 __all__ = ["ipd_px", "rendered_mask", "point_misses", "point_agreement", "head_region", "silhouette_iou", "profile_line",
-           "skin_delta_e", "relit", "BROW_IDS"]
+           "skin_delta_e", "relit", "cheek_box", "cheek_psnr", "BROW_IDS"]
 
 #: Eyebrow points: where the profile line starts (the highest one a photo shows).
 BROW_IDS = ("4.1", "4.2", "4.3", "4.4", "4.5", "4.6")
@@ -160,3 +163,37 @@ def relit(texture_render: np.ndarray, lighting) -> np.ndarray | None:
         return None
     out = texture_render.astype(np.float32) * shading[..., None]
     return np.clip(np.round(out), 0, 255).astype(np.uint8)
+
+
+def cheek_box(points: Mapping[str, np.ndarray], shape: tuple[int, int]) -> np.ndarray | None:
+    """(H, W) bool: the cheek in a profile photo, from its detected points: rows from the
+    eye's outer corner down half way from the mouth's corner to the chin, columns from the
+    mouth's corner back to the ear's front (whichever side's ids the photo carries); None
+    when the photo lacks them."""
+    def first(*ids):
+        return next((np.asarray(points[i], float) for i in ids if i in points), None)
+
+    eye, mouth, chin = first("3.7", "3.12"), first("8.3", "8.4"), first("2.1")
+    ear = first("10.7", "10.8", "10.9", "10.10")
+    if any(p is None for p in (eye, mouth, chin, ear)):
+        return None
+    r0, r1 = eye[1], mouth[1] + 0.5 * (chin[1] - mouth[1])
+    c0, c1 = sorted((mouth[0], ear[0]))
+    out = np.zeros(shape, bool)
+    rows = slice(max(int(np.ceil(r0)), 0), max(int(r1) + 1, 0))
+    cols = slice(max(int(np.ceil(c0)), 0), max(int(c1) + 1, 0))
+    out[rows, cols] = True
+    return out
+
+
+def cheek_psnr(photo: np.ndarray, render: np.ndarray, region: np.ndarray) -> float:
+    """PSNR (dB, RGB) of a render against the photo over ``region``, after the one gain that
+    brings the render's luma to the photo's there (a de-lit texture is the albedo up to the
+    light's strength, which no photo tells)."""
+    from recon.evaluate.fidelity import matched_gain
+
+    if region.sum() < 100:
+        return float("nan")
+    image = matched_gain(render, photo, region)
+    diff = image[region].astype(np.float64) - photo[region].astype(np.float64)
+    return float(10 * np.log10(255.0 ** 2 / max(float(np.mean(diff ** 2)), 1e-12)))

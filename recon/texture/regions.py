@@ -31,8 +31,8 @@ from mpeg4.head import Head
 from .cameras import FittedCamera
 from .warp import FEATURE_LINE, convex_outline, sections
 
-__all__ = ["REGIONS", "FRONT", "SEEN", "MIRRORED", "HIDDEN", "FOLD", "line_ids", "feature_line", "view_line",
-           "feature_polygon", "feature_envelope",
+__all__ = ["REGIONS", "FRONT", "SEEN", "MIRRORED", "HIDDEN", "FOLD", "SPLIT_STIFFNESS", "line_ids", "feature_line",
+           "view_line", "smoothest_splits", "feature_polygon", "feature_envelope",
            "vertex_regions", "line_depth", "triangle_regions", "split_by_region"]
 
 _NECK_STEP = 0.01  # metres between the neck line's points
@@ -163,7 +163,7 @@ def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, ski
     ahead = np.flatnonzero((v[:, 0] * sign > 0) & (v[:, 2] >= z_ear))
     heights = np.arange(ear[top - 1, 1] - step, ear[-1, 1] - 0.5 * step, -step)
     inner = feature_envelope(points3d, side, heights)
-    line = []
+    bands, costs = [], []
     for y, lim in zip(heights, inner):
         k = ahead[np.abs(v[ahead, 1] - y) <= 0.5 * step]
         if len(k) < 2:
@@ -175,10 +175,56 @@ def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, ski
         # nose only moves the split by its own area), never inside the features.
         cost = np.cumsum(w * ~good) + (np.sum(w * good) - np.cumsum(w * good))
         cost[:max(int(np.searchsorted(v[k, 0] * sign, lim)) - 1, 0)] = np.inf
-        j = int(np.argmin(cost))
-        line.append([v[k[j], 0], y, v[k[j], 2]])
+        bands.append((y, k))
+        costs.append(cost)
+    splits = smoothest_splits(costs, [v[k][:, [0, 2]] for _, k in bands], SPLIT_STIFFNESS * step)
+    line = [[v[k[j], 0], y, v[k[j], 2]] for (y, k), j in zip(bands, splits)]
     points = np.vstack([ear[:top], np.array(line).reshape(-1, 3)])
     return points, np.r_[ear_fp[:top], np.zeros(len(line), bool)]
+
+
+#: How dearly the view line pays for a sideways step between neighbouring bands, per metre
+#: stepped, as a share of the band's height (the most skin area a step of that length can
+#: move to the better photo). Below 1 a split can move; at 0.5 a lone band never jumps
+#: from its neighbours (it would pay for two steps what it gains on one), and a stretch of
+#: ``k`` bands moves when more than ``1 / k`` of the skin it passes over is better seen
+#: from the other photo: the split follows the face's shape, not the noise of single
+#: normals (one band's jump to the ear and back shears the side photo's warp into a
+#: zig-zag, a seam across the cheek).
+SPLIT_STIFFNESS = 0.5
+
+
+def smoothest_splits(costs, points, penalty: float) -> list[int]:
+    """The split of each band that minimises the bands' costs plus ``penalty`` times the
+    length of the steps between consecutive bands' splits (dynamic programming, exact).
+
+    Parameters
+    ----------
+    costs : sequence of (n_i,) float
+        Each band's cost of splitting at each of its candidates (``inf``: never there).
+    points : sequence of (n_i, D) float
+        Where each candidate lies (metres).
+    penalty : float
+        Cost per metre stepped between bands.
+
+    Returns
+    -------
+    list of int
+        The chosen candidate of each band.
+    """
+    if not costs:
+        return []
+    total, back = np.asarray(costs[0], float), []
+    for c, p0, p1 in zip(costs[1:], points[:-1], points[1:]):
+        step = np.linalg.norm(np.asarray(p0, float)[:, None] - np.asarray(p1, float)[None], axis=2)
+        reach = total[:, None] + penalty * step  # (n_prev, n_next)
+        best = np.argmin(reach, axis=0)
+        total = reach[best, np.arange(reach.shape[1])] + np.asarray(c, float)
+        back.append(best)
+    out = [int(np.argmin(total))]
+    for best in reversed(back):
+        out.append(int(best[out[-1]]))
+    return out[::-1]
 
 
 #: The face's features whose texture comes from one photo whole: brows, eyes, lips, nose.

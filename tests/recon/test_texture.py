@@ -272,3 +272,61 @@ def test_the_view_line_never_cuts_into_the_eyes_brows_nose_or_lips(example, monk
     monkeypatch.setattr(regions, "feature_envelope", lambda pts, side, h, margin=None: np.full(len(h), -np.inf))
     q, _ = line()
     assert np.min(q[inside, 0] * sign - env[inside]) < -0.02  # unguarded, it cuts deep into the face
+
+
+def test_the_smoothest_splits_are_the_exact_optimum():
+    # Dynamic programming against every combination on small random bands (some
+    # candidates barred with inf, as inside the face's features).
+    import itertools
+
+    from recon.texture.regions import smoothest_splits
+
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        sizes = rng.integers(1, 5, size=rng.integers(1, 5))
+        costs = [rng.uniform(0, 1, k) for k in sizes]
+        for c in costs:
+            c[rng.uniform(size=len(c)) < 0.2] = np.inf
+            c[rng.integers(len(c))] = rng.uniform(0, 1)  # never all barred
+        points = [rng.uniform(-1, 1, (k, 2)) for k in sizes]
+        penalty = rng.uniform(0, 2)
+
+        def total(js):
+            return sum(c[j] for c, j in zip(costs, js)) + penalty * sum(
+                np.linalg.norm(points[i][a] - points[i + 1][b]) for i, (a, b) in enumerate(zip(js, js[1:])))
+
+        best = min(total(js) for js in itertools.product(*(range(k) for k in sizes)))
+        assert total(smoothest_splits(costs, points, penalty)) == pytest.approx(best, rel=1e-12, abs=1e-12)
+
+
+def test_the_view_line_does_not_jump_with_noisy_normals(example, monkeypatch):
+    # Per band, the split where the least skin goes to the worse photo jumps on a few noisy
+    # normals (on a real pair: to the ear and back, a zig-zag of the side photo's warp and a
+    # seam across the cheek); paying for each step between bands keeps the line as smooth
+    # as on the clean normals.
+    from mpeg4.render import vertex_normals
+    from recon.texture import regions
+    from recon.texture.regions import view_line
+
+    _, result = example
+    head, cams = result.head, result.skin.cameras
+    v, t = head.skin.vertices, head.skin.triangles
+    pts = head.fp_positions()
+    centre = v.mean(axis=0, keepdims=True)
+    to_front, to_side = cams["front"].camera.towards(centre)[0], cams["side"].camera.towards(centre)[0]
+    side = "L" if to_side[0] > 0 else "R"
+    clean = vertex_normals(v, t)
+
+    def largest_step(normals):  # mm, between consecutive points of the line on the face
+        p = view_line(pts, v, t, side, to_front, to_side, normals=normals, registration=(1.0, 2.0))[0][3:]
+        q = p[p[:, 1] >= pts["2.1"][1]][:, [0, 2]]
+        return 1000 * np.linalg.norm(np.diff(q, axis=0), axis=1).max()
+
+    calm = largest_step(clean)
+    for seed in (0, 1):
+        n = clean + 0.3 * np.random.default_rng(seed).normal(size=clean.shape)
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        assert largest_step(n) <= calm + 5.0
+        with monkeypatch.context() as m:
+            m.setattr(regions, "SPLIT_STIFFNESS", 0.0)
+            assert largest_step(n) >= calm + 9.0  # each band alone: it jumps
