@@ -32,7 +32,7 @@ from .cameras import FittedCamera
 from .warp import FEATURE_LINE, convex_outline, sections
 
 __all__ = ["REGIONS", "FRONT", "SEEN", "MIRRORED", "HIDDEN", "FOLD", "SPLIT_STIFFNESS", "line_ids", "feature_line",
-           "view_line", "smoothest_splits", "feature_polygon", "feature_envelope",
+           "view_line", "smoothest_splits", "on_skin", "OVER_SKULL", "feature_polygon", "feature_envelope",
            "vertex_regions", "line_depth", "triangle_regions", "split_by_region"]
 
 _NECK_STEP = 0.01  # metres between the neck line's points
@@ -56,8 +56,10 @@ def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, 
                  side: str) -> tuple[np.ndarray, np.ndarray]:
     """The feature line of one side of the face, top to bottom.
 
-    Its feature points (:data:`FEATURE_LINE`, mirrored for ``"R"``) and, below the last of
-    them (the ear's front), a line down the neck: at every :data:`_NECK_STEP` down to the bottom of the
+    Its feature points (:data:`FEATURE_LINE`, mirrored for ``"R"``), over the skull (from
+    its top to the brow's end, :data:`OVER_SKULL` of them) with points on the skin between
+    them every :data:`_NECK_STEP` (:func:`on_skin`), and, below the last of them (the ear's
+    front), a line down the neck: at every :data:`_NECK_STEP` down to the bottom of the
     skin, the point of the skin's cross-section (its convex outline) that faces half way
     between the front and the side, where both photos see the neck at 45°. The front photo
     gets the neck's front, the side photos what lies behind.
@@ -90,8 +92,51 @@ def feature_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, 
         # front one at a grazing angle.
         k = int(np.argmax(hull @ np.array([sign, 1.0])))
         neck.append([hull[k, 0], y, hull[k, 1]])
-    points = np.vstack([fps, np.array(neck).reshape(-1, 3)])
-    return points, np.r_[np.ones(len(fps), bool), np.zeros(len(neck), bool)]
+    skull, skull_fp = on_skin(fps[:OVER_SKULL], v, skin_triangles, _NECK_STEP)
+    points = np.vstack([skull, fps[OVER_SKULL:], np.array(neck).reshape(-1, 3)])
+    return points, np.r_[skull_fp, np.ones(len(fps) - OVER_SKULL, bool), np.zeros(len(neck), bool)]
+
+
+#: The feature line's points over the skull: its top, the hairline's end and the brow's end.
+OVER_SKULL = 3
+
+
+def on_skin(points: np.ndarray, skin_vertices: np.ndarray, skin_triangles: np.ndarray,
+            step: float) -> tuple[np.ndarray, np.ndarray]:
+    """A polyline of points on the skin with points added between them, every ``step``
+    metres or less, on the skin's cross-section at their height (the nearest point of it to
+    the chord): the line runs over the surface instead of under it.
+
+    Over the skull the feature line's points lie 40-70 mm apart; the straight chords between
+    them pass up to 15 mm under the skin. The front region ends at the line's depth and the side
+    photo's warp is anchored on it: on a chord, the front photo's crown and the side photo's
+    meet at two places of the texture that are not side by side, a seam no blend can reach
+    (a dark cap on the crown bounded by the hair's outline, in a real pair).
+
+    Returns
+    -------
+    points : (K, 3) float64
+    is_given : (K,) bool
+        Which of them are the given points.
+    """
+    p = np.asarray(points, float)
+    out, given, added = [p[0]], [True], []
+    for a, b in zip(p[:-1], p[1:]):
+        k = max(1, int(np.ceil(np.linalg.norm(b - a) / step)))
+        for j in range(1, k):
+            added.append(len(out))
+            out.append(a + (b - a) * (j / k))
+            given.append(False)
+        out.append(b)
+        given.append(True)
+    out = np.array(out)
+    if added:
+        cuts = sections(np.asarray(skin_vertices, float), np.asarray(skin_triangles), out[added, 1])
+        for i, xz in zip(added, cuts):
+            if len(xz):
+                near = xz[np.argmin(np.sum((xz - out[i, [0, 2]]) ** 2, axis=1))]
+                out[i, [0, 2]] = near
+    return out, np.array(given)
 
 
 def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, skin_triangles: np.ndarray,
@@ -148,7 +193,7 @@ def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, ski
     from mpeg4.render import vertex_normals
 
     ear, ear_fp = feature_line(points3d, skin_vertices, skin_triangles, side)
-    top = 3  # the skull's top, the hairline's end and the brow's end
+    top = int(np.flatnonzero(ear_fp)[OVER_SKULL - 1]) + 1  # down to the brow's end
     sign = 1.0 if side == "L" else -1.0
     v = np.asarray(skin_vertices, float)
     n = vertex_normals(v, np.asarray(skin_triangles)) if normals is None else normals

@@ -226,9 +226,11 @@ def test_a_side_photo_registered_worse_gives_less_of_the_cheek(example):
     centre = v.mean(axis=0, keepdims=True)
     to_front, to_side = cams["front"].camera.towards(centre)[0], cams["side"].camera.towards(centre)[0]
     side = "L" if to_side[0] > 0 else "R"
-    lines = {r: view_line(head.fp_positions(), v, t, side, to_front, to_side, normals=n, registration=(1.0, r))[0]
+    lines = {r: view_line(head.fp_positions(), v, t, side, to_front, to_side, normals=n, registration=(1.0, r))
              for r in (1.0, 3.0, 1e6)}
-    reach = {r: np.median(np.abs(p[3:, 0])) for r, p in lines.items()}  # how far out the front reaches
+    # How far out the front reaches, over the splits below the brow's end.
+    reach = {r: np.median(np.abs(p[np.flatnonzero(fp)[2] + 1:, 0])) for r, (p, fp) in lines.items()}
+    lines = {r: p for r, (p, _) in lines.items()}
     assert reach[3.0] > reach[1.0] + 0.002  # metres
     assert reach[1e6] >= reach[3.0]
     assert np.allclose(lines[1.0], view_line(head.fp_positions(), v, t, side, to_front, to_side, normals=n)[0])
@@ -261,7 +263,8 @@ def test_the_view_line_never_cuts_into_the_eyes_brows_nose_or_lips(example, monk
     assert np.isneginf(env[1]) and np.isneginf(env[2])  # above the brows, below the lips: nothing to keep
 
     def line(**kw):
-        p = view_line(pts, v, t, side, to_front, to_side, normals=n, registration=(1e6, 1.0), **kw)[0][3:]
+        p, fp = view_line(pts, v, t, side, to_front, to_side, normals=n, registration=(1e6, 1.0), **kw)
+        p = p[np.flatnonzero(fp)[2] + 1:]  # the splits below the brow's end
         return p, feature_envelope(pts, side, p[:, 1])
 
     p, env = line()
@@ -318,7 +321,8 @@ def test_the_view_line_does_not_jump_with_noisy_normals(example, monkeypatch):
     clean = vertex_normals(v, t)
 
     def largest_step(normals):  # mm, between consecutive points of the line on the face
-        p = view_line(pts, v, t, side, to_front, to_side, normals=normals, registration=(1.0, 2.0))[0][3:]
+        p, fp = view_line(pts, v, t, side, to_front, to_side, normals=normals, registration=(1.0, 2.0))
+        p = p[np.flatnonzero(fp)[2] + 1:]  # the splits below the brow's end
         q = p[p[:, 1] >= pts["2.1"][1]][:, [0, 2]]
         return 1000 * np.linalg.norm(np.diff(q, axis=0), axis=1).max()
 
@@ -330,3 +334,29 @@ def test_the_view_line_does_not_jump_with_noisy_normals(example, monkeypatch):
         with monkeypatch.context() as m:
             m.setattr(regions, "SPLIT_STIFFNESS", 0.0)
             assert largest_step(n) >= calm + 9.0  # each band alone: it jumps
+
+
+def test_the_feature_line_runs_over_the_skull_on_the_skin(example):
+    # Between the top of the skull, the hairline's end and the brow's end the straight
+    # chords pass under the skin: the front photo's crown and the side photo's then meet at
+    # places of the texture that are not side by side (a seam no blend reaches). The line
+    # now runs on the skin there, the feature points kept as they are.
+    import trimesh
+
+    from recon.texture.regions import OVER_SKULL
+
+    _, result = example
+    head = result.head
+    v, t = head.skin.vertices, head.skin.triangles
+    pts = head.fp_positions()
+    line, is_fp = feature_line(pts, v, t, "L")
+    top = np.flatnonzero(is_fp)[OVER_SKULL - 1] + 1
+    skull, given = line[:top], is_fp[:top]
+    np.testing.assert_allclose(skull[given], [pts[i] for i in ("11.4", "11.3", "4.5")])
+    assert (~given).sum() >= 8  # 40-70 mm apart, a point every 10 mm
+    mesh = trimesh.Trimesh(v, t, process=False)
+    _, on_line, _ = trimesh.proximity.closest_point(mesh, skull[~given])
+    _, on_chord, _ = trimesh.proximity.closest_point(mesh, 0.5 * (skull[given][:-1] + skull[given][1:]))
+    assert on_line.max() < 5e-4  # metres
+    assert on_chord.max() > 0.01  # the chord from the top of the skull runs a centimetre under
+    assert np.all(np.diff(skull[:, 1]) < 0)  # still running downwards
