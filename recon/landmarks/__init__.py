@@ -57,7 +57,8 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
         skull points whose outline is hair (``under_hair``, :mod:`recon.shape.hair`), the side the side
         photo shows, which way it faces and how sure that is (``side_facing``, see
         :mod:`recon.landmarks.facing`), which of the eye, lips and ear the side photo was
-        seen to show, and ``warnings`` (a facing taken with some cues against it).
+        seen to show, the side points placed ahead of the face's outline and taken back onto
+        it (``side_ahead_of_profile``), and ``warnings`` (a facing taken with some cues against it).
     side_facing : {"left", "right"}, optional
         Where the nose points in the side photo, when the user knows.
     """
@@ -83,6 +84,7 @@ def detect_images(front, side, front_name: str = "front photo", side_name: str =
                           "side_shows": shown,
                           "side_facing": facing.record(),
                           "side_parts_seen": [k for k in ("eye", "lips", "ear") if s.extras.get(k) is not None],
+                          "side_ahead_of_profile": list(s.extras.get("ahead_of_profile", [])),
                           "under_hair": {"front": list(f.extras.get("under_hair", [])),
                                          "side": list(s.extras.get("under_hair", []))},
                           "source": {"front": dict(f.source), "side": dict(s.source)}}}

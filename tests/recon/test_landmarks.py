@@ -373,3 +373,29 @@ def test_synthetic_identity_against_truth(ict_npz):
     assert np.median([e for i, e in err["front"].items() if src["front"][i] != "model"]) < 5.0
     # The side photo's (benchmarks/landmark_accuracy.py: median about 3.4 % over 20 identities).
     assert np.median(list(err["side"].values())) < 5.0
+
+
+@needs_mediapipe
+def test_no_side_point_stands_ahead_of_the_face(example, monkeypatch):
+    # A point off the profile that the face mesh's depth puts in front of the face's outline
+    # is in the backdrop (a real pair's upper lip, 7 mm ahead of the lip's midpoint, cut a
+    # trench down the built philtrum): it is taken back onto the outline, less sure.
+    from recon.landmarks import detect, side
+
+    placed = side._placed
+
+    def ahead(fit, depth_height):
+        pts = placed(fit, depth_height)
+        pts["8.5"] = pts["8.5"] - [0.5 * abs(pts["8.5"][0] - pts["8.1"][0]) + 30.0, 0.0]  # nose-left: ahead
+        return pts
+
+    monkeypatch.setattr(side, "_placed", ahead)
+    fdp = detect(EXAMPLE / "front.jpg", EXAMPLE / "side.jpg")
+    plain, _ = example
+    got, was = fdp.views["side"], plain.views["side"]
+    assert fdp.metadata["landmarks"]["side_ahead_of_profile"] == ["8.5"]
+    assert plain.metadata["landmarks"]["side_ahead_of_profile"] == []
+    # On the outline: as far forward as the upper lip's midpoint on the profile, no further.
+    assert abs(got.points["8.5"][0] - got.points["8.1"][0]) < 3.0
+    assert got.points["8.5"][0] < was.points["8.5"][0]
+    assert got.confidence["8.5"] < was.confidence["8.5"]
