@@ -201,13 +201,13 @@ def cheek_vertices(head: Head, side: FittedCamera, facing_deg: float = 45.0) -> 
     the front photo sees at a grazing angle.
 
     Skin ahead of the feature lines down the front of the ears
-    (:func:`recon.texture.regions.feature_line`), outside the outer eye corners (3.7, 3.12:
+    (:func:`recon.texture.lines.feature_line`), outside the outer eye corners (3.7, 3.12:
     not the side of the nose), between their height and that of the jaw's angles (2.13,
     2.14), whose normal is within ``facing_deg`` of the direction to the side camera
     (either side of the face). Defined by the head's shape alone, so that textures laid out
     differently are compared over the same skin.
     """
-    from recon.texture.regions import feature_line, line_depth
+    from recon.texture.lines import feature_line, line_depth
 
     part = head.parts["skin"]
     pts = head.fp_positions()

@@ -8,6 +8,7 @@ The stages, each a module:
   divided out (the albedo);
 - :mod:`~recon.texture.warp`: the side photo warped along the feature line onto the front
   photo's frame (Lee and Magnenat-Thalmann);
+- :mod:`~recon.texture.lines`: the lines along which the photos' layers meet;
 - :mod:`~recon.texture.regions`: which photo each part of the skin takes;
 - :mod:`~recon.texture.blend`: the Burt–Adelson multiresolution spline that merges the
   layers;
@@ -18,8 +19,9 @@ The stages, each a module:
 """
 
 from .blend import blend_feather, blend_hard, blend_multiband, seam_band, seam_gradient
-from .regions import (FOLD, FRONT, HIDDEN, MIRRORED, REGIONS, SEEN, feature_line, feature_polygon, line_depth,
-                      line_ids, split_by_region, triangle_regions, vertex_regions)
+from .lines import feature_line, line_depth, line_ids
+from .regions import (FOLD, FRONT, HIDDEN, MIRRORED, REGIONS, SEEN, feature_polygon, split_by_region,
+                      triangle_regions, vertex_regions)
 from .skin import SkinTexture, photo_background, texture_skin, textured_head
 from .warp import FEATURE_LINE, FeatureLineWarp
 

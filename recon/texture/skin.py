@@ -15,7 +15,7 @@ Texture generation and fitting after Lee and Magnenat-Thalmann (sections 2.2.1â€
    pyramid of its mask and the result collapsed, so that the seams along the feature
    lines vanish at every scale instead of showing as an edge or a ghost.
 4. Every skin vertex is projected onto the front, seen-side or mirrored-side plane,
-   chosen by the **view lines** (:func:`~recon.texture.regions.view_line`: the feature
+   chosen by the **view lines** (:func:`~recon.texture.lines.view_line`: the feature
    line above the brow's end, below it the line where the two photos see the skin
    equally squarely, so that the cheek the front photo sees edge-on comes from the side
    photo; the feature lines themselves with a front photo alone) â€” inside the polygon
@@ -63,9 +63,9 @@ from .clothes import remove_clothes
 from .delight import fit_mask
 from .exposure import apply_gain, side_gain
 from .glasses import remove_glasses
+from .lines import feature_line, line_depth, view_line
 from .regions import (FOLD, FRONT, HIDDEN, MIRRORED, REGIONS, SEEN, _depth, _folds, _head_meshes, _seen_from_around,
-                      _seen_in_box, _visible, feature_line, feature_polygon, line_depth, split_by_region,
-                      triangle_regions, vertex_regions, view_line)
+                      _seen_in_box, _visible, feature_polygon, split_by_region, triangle_regions, vertex_regions)
 from .warp import FeatureLineWarp
 
 __all__ = ["SkinTexture", "photo_background", "texture_skin", "textured_head"]

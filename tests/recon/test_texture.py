@@ -217,7 +217,7 @@ def test_a_side_photo_registered_worse_gives_less_of_the_cheek(example):
     # side photo three times worse registered leaves more of the cheek to the front photo,
     # and one registered as well as the front photo is the plain "squarer view wins" line.
     from mpeg4.render import vertex_normals
-    from recon.texture.regions import view_line
+    from recon.texture.lines import view_line
 
     _, result = example
     head, cams = result.head, result.skin.cameras
@@ -244,8 +244,8 @@ def test_the_view_line_never_cuts_into_the_eyes_brows_nose_or_lips(example, monk
     # it sees more squarely, but never a piece of an eye, brow, nostril or lip: those come
     # from the front photo whole (the mirrored side would paint the other eye there).
     from mpeg4.render import vertex_normals
-    from recon.texture import regions
-    from recon.texture.regions import FEATURE_MARGIN_ES, feature_envelope, view_line
+    from recon.texture import lines
+    from recon.texture.lines import FEATURE_MARGIN_ES, feature_envelope, view_line
 
     _, result = example
     head, cams = result.head, result.skin.cameras
@@ -272,7 +272,7 @@ def test_the_view_line_never_cuts_into_the_eyes_brows_nose_or_lips(example, monk
     assert inside.sum() >= 4
     # The split's last front vertex lies within one vertex spacing (~4 mm) of the envelope.
     assert np.all(p[inside, 0] * sign >= env[inside] - 0.004), (p[inside, 0] * sign - env[inside])
-    monkeypatch.setattr(regions, "feature_envelope", lambda pts, side, h, margin=None: np.full(len(h), -np.inf))
+    monkeypatch.setattr(lines, "feature_envelope", lambda pts, side, h, margin=None: np.full(len(h), -np.inf))
     q, _ = line()
     assert np.min(q[inside, 0] * sign - env[inside]) < -0.02  # unguarded, it cuts deep into the face
 
@@ -282,7 +282,7 @@ def test_the_smoothest_splits_are_the_exact_optimum():
     # candidates barred with inf, as inside the face's features).
     import itertools
 
-    from recon.texture.regions import smoothest_splits
+    from recon.texture.lines import smoothest_splits
 
     rng = np.random.default_rng(7)
     for _ in range(20):
@@ -308,8 +308,8 @@ def test_the_view_line_does_not_jump_with_noisy_normals(example, monkeypatch):
     # seam across the cheek); paying for each step between bands keeps the line as smooth
     # as on the clean normals.
     from mpeg4.render import vertex_normals
-    from recon.texture import regions
-    from recon.texture.regions import view_line
+    from recon.texture import lines
+    from recon.texture.lines import view_line
 
     _, result = example
     head, cams = result.head, result.skin.cameras
@@ -332,7 +332,7 @@ def test_the_view_line_does_not_jump_with_noisy_normals(example, monkeypatch):
         n /= np.linalg.norm(n, axis=1, keepdims=True)
         assert largest_step(n) <= calm + 5.0
         with monkeypatch.context() as m:
-            m.setattr(regions, "SPLIT_STIFFNESS", 0.0)
+            m.setattr(lines, "SPLIT_STIFFNESS", 0.0)
             assert largest_step(n) >= calm + 9.0  # each band alone: it jumps
 
 
@@ -343,7 +343,7 @@ def test_the_feature_line_runs_over_the_skull_on_the_skin(example):
     # now runs on the skin there, the feature points kept as they are.
     import trimesh
 
-    from recon.texture.regions import OVER_SKULL
+    from recon.texture.lines import OVER_SKULL
 
     _, result = example
     head = result.head
