@@ -7,11 +7,12 @@ the midline itself seen edge-on, and no hair hides it, so :func:`profile_control
 it there: each of the head's midline vertices between the brow and the chin is projected
 by the side photo's camera, and the photo's outline in its row against the head's own
 outline there (the head rendered by the same camera) says how far forward (or back) the
-face is at that height. Those midline vertices, a few millimetres apart and away from the
-feature points, become extra controls of the same DFFD (:func:`follow_profile`), which
-moves them forward or back along the face's depth to the outline, and the skin around them
-with them, while the feature points stay where they are; :func:`match_profile` does it
-twice, the second round taking most of what the interpolation left between the controls.
+face is at that height. Those moves, at midline vertices a few millimetres apart and away
+from the feature points, are carried over the face as one smooth field along its depth
+(:func:`follow_profile`: between their heights, and across the face with a Gaussian
+fall-off from the midline), less the smoothest field that takes it back at the feature
+points, which stay where they are; :func:`match_profile` does it twice, the second round
+taking most of what the holds left.
 
 An outline row that disagrees with the head by far more than a profile can (a fringe over
 the forehead, glasses on the nose, a hand) is left out, and so is a control whose
@@ -28,8 +29,8 @@ import numpy as np
 from mpeg4.camera import Camera
 from mpeg4.head import Head
 
-__all__ = ["PROFILE_SPACING_MM", "MAX_PROFILE_SHIFT_IPD", "PROFILE_PASSES", "ProfileControls", "profile_controls",
-           "follow_profile", "match_profile"]
+__all__ = ["PROFILE_SPACING_MM", "MAX_PROFILE_SHIFT_IPD", "PROFILE_PASSES", "PROFILE_WIDTH_MM", "HOLD_MM",
+           "ProfileControls", "profile_controls", "follow_profile", "match_profile"]
 
 #: Spacing of the profile's controls along the face's height, millimetres.
 PROFILE_SPACING_MM = 3.0
@@ -43,6 +44,12 @@ MAX_PROFILE_SHIFT_IPD = 0.1
 #: there at once; a second round takes most of the rest (on a real pair the controls' mean
 #: move was 2.9, then 1.4, then 0.6 mm).
 PROFILE_PASSES = 2
+#: How far to either side of the midline the profile's move reaches, millimetres (the
+#: standard deviation of its Gaussian fall-off across the face): about half a nose's width.
+PROFILE_WIDTH_MM = 8.0
+#: How far about the vertices a feature point is bound to its hold reaches, millimetres:
+#: the skin this close bends from the point's place to the profile's move.
+HOLD_MM = 8.0
 #: Midline vertices: this close to the head's plane of symmetry, millimetres.
 _MIDLINE_MM = 1.0
 #: Controls along the profile a move is the median of (odd).
@@ -171,21 +178,71 @@ def profile_controls(head: Head, side_mask: np.ndarray, camera: Camera, side_poi
     return ProfileControls(v, rest, goal, shift_m * 1000.0, left_out=int((~ok).sum()))
 
 
-def follow_profile(head: Head, controls: ProfileControls) -> Head:
-    """``head`` with its midline moved onto the profile by the same DFFD that shaped it: the
-    feature points stay, the controls go to their goals (:func:`profile_controls`), the skin
-    between follows. The eyes, teeth and tongue stay where they are: the profile is skin
-    (and the pupils, feature points on the eyeballs, must not move)."""
-    from .deform import RIGID_PARTS, deform_head
+def _profile_field(points: np.ndarray, ys: np.ndarray, zs: np.ndarray, moves: np.ndarray,
+                   width_mm: float) -> np.ndarray:
+    """(N,) metres: the profile's move at ``points`` along the face's depth: the controls'
+    moves (at heights ``ys``, depths ``zs``) interpolated by height and faded out over two
+    spacings beyond the first and last (a raised cosine: nothing above the brow or below
+    the chin), times a Gaussian of the distance from the midline (``width_mm``), on the
+    face's side of the head only (within 3-5 cm of the profile's depth)."""
+    v = np.asarray(points, float)
+    along = np.interp(v[:, 1], ys, moves)
+    fade = 2 * PROFILE_SPACING_MM * 1e-3
+    beyond = np.maximum(np.maximum(ys[0] - v[:, 1], v[:, 1] - ys[-1]), 0.0)
+    along = along * 0.5 * (1 + np.cos(np.pi * np.minimum(beyond / fade, 1.0)))
+    across = np.exp(-0.5 * (v[:, 0] / (width_mm * 1e-3)) ** 2)
+    behind = np.interp(v[:, 1], ys, zs) - v[:, 2]
+    front = 0.5 * (1 + np.cos(np.pi * np.clip((behind - 0.03) / 0.02, 0.0, 1.0)))
+    return along * across * front
+
+
+def follow_profile(head: Head, controls: ProfileControls, width_mm: float = PROFILE_WIDTH_MM) -> Head:
+    """``head`` with its face moved along its depth onto the profile, the feature points
+    held: the controls' moves (:func:`profile_controls`) as one smooth field (carried
+    between their heights, and across the face with a Gaussian fall-off from the midline,
+    ``width_mm``), less the smoothest field over the skin (bi-harmonic,
+    :func:`mpeg4.surface.bilaplacian`) that equals it at the vertices the feature points
+    are bound to and vanishes :data:`HOLD_MM` from them: every point stays exactly where it
+    was put, and the skin around bends smoothly from it. The eyes, teeth and tongue stay
+    where they are: the profile is skin (and the pupils, feature points on the eyeballs,
+    must not move).
+
+    The profile's moves were once DFFD controls on the midline's vertices, 3 mm apart: the
+    DFFD is only continuous at its controls, and a row of them folded the skin along the
+    midline (a crease down the philtrum and the chin of a real pair's head)."""
+    from scipy import sparse
+    from scipy.sparse.linalg import spsolve
+
+    from mpeg4.surface import bilaplacian
+
+    from .deform import RIGID_PARTS
 
     if not len(controls.vertices):
         return head
-    out = deform_head(head, head.fp_positions(), extra=(controls.rest, controls.goal))
-    for name in RIGID_PARTS:
-        if name in head.parts:
-            out.parts[name].vertices = head.parts[name].vertices.copy()
-            if head.parts[name].centre is not None:
-                out.parts[name].centre = head.parts[name].centre.copy()
+    order = np.argsort(controls.rest[:, 1])
+    ys, zs = controls.rest[order, 1], controls.rest[order, 2]
+    moves = controls.goal[order, 2] - controls.rest[order, 2]
+    out = head.copy()
+    for name, part in out.parts.items():
+        if name in RIGID_PARTS or not len(part.vertices):
+            continue
+        v = part.vertices
+        move = _profile_field(v, ys, zs, moves, width_mm)
+        held = sorted({int(i) for b in head.feature_points.values() if b.part == name for i in b.vertices})
+        held = np.array([i for i in held if abs(move[i]) > 1e-7], dtype=np.int64)
+        if len(held) and len(part.triangles):
+            from scipy.spatial import cKDTree
+
+            near = cKDTree(v[held]).query(v, distance_upper_bound=HOLD_MM * 1e-3)[0] < np.inf
+            free = np.flatnonzero(near & ~np.isin(np.arange(len(v)), held))
+            back = np.zeros(len(v))
+            back[held] = move[held]
+            if len(free):
+                q = bilaplacian(v, part.triangles)
+                rhs = -(q[free][:, held] @ move[held])
+                back[free] = spsolve(sparse.csc_matrix(q[free][:, free]), rhs)
+            move = move - back
+        part.vertices = v + move[:, None] * [0.0, 0.0, 1.0]
     return out
 
 

@@ -94,3 +94,34 @@ def test_an_outline_that_is_not_the_face_is_left_out(generic):
     pc = profile_controls(generic, blocked, cam, pts)
     assert pc.left_out > 0
     assert np.abs(pc.shift_mm).max() < 0.35
+
+
+def _crease(head):
+    """The largest change of the skin's slope (dz/dx) across the midline at three heights
+    over the mentolabial sulcus: a fold along the midline shows as a jump of the slope."""
+    v = head.skin.vertices
+    y0 = 0.5 * (head.fp_position("8.2")[1] + head.fp_position("2.10")[1])
+    out = []
+    for dy in (-2e-3, 0.0, 2e-3):
+        row = np.flatnonzero((np.abs(v[:, 1] - (y0 + dy)) < 0.8e-3) & (v[:, 2] > 0.09) & (np.abs(v[:, 0]) < 0.012))
+        x, z = v[row, 0], v[row, 2]
+        left, right = (x < -0.5e-3) & (x > -6e-3), (x > 0.5e-3) & (x < 6e-3)
+        out.append(abs(np.polyfit(x[left], z[left], 1)[0] - np.polyfit(x[right], z[right], 1)[0]))
+    return max(out)
+
+
+def test_the_profile_moves_no_crease_into_the_midline(generic):
+    # The whole profile 3 mm forward: the face comes forward smoothly across the midline
+    # (as DFFD controls on the midline's vertices alone it folded the skin along it, the
+    # slope's jump growing by 0.28 here and a crease down a real pair's philtrum), and
+    # every feature point stays exactly where it was.
+    from recon.shape.outline import ProfileControls
+
+    mask, cam, pts = _side_view(generic)
+    pc = profile_controls(generic, mask, cam, pts)
+    forward = ProfileControls(pc.vertices, pc.rest, pc.rest + [0.0, 0.0, 0.003], np.full(len(pc.rest), 3.0))
+    out = follow_profile(generic, forward)
+    assert _crease(out) <= _crease(generic) + 0.05, (_crease(generic), _crease(out))
+    moved = out.skin.vertices[pc.vertices, 2] - generic.skin.vertices[pc.vertices, 2]
+    assert np.median(moved) > 1.5e-3  # the held points take some of it back near them
+    assert max(np.linalg.norm(out.fp_position(i) - generic.fp_position(i)) for i in generic.feature_points) < 1e-6
