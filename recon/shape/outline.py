@@ -230,12 +230,15 @@ def follow_profile(head: Head, controls: ProfileControls, width_mm: float = PROF
             continue
         v = part.vertices
         move = _profile_field(v, ys, zs, moves, width_mm)
-        held = sorted({int(i) for b in head.feature_points.values() if b.part == name for i in b.vertices})
-        held = np.array([i for i in held if abs(move[i]) > 1e-7], dtype=np.int64)
-        if len(held) and len(part.triangles):
+        held = np.array(sorted({int(i) for b in head.feature_points.values() if b.part == name
+                                for i in b.vertices}), dtype=np.int64)
+        acting = held[np.abs(move[held]) > 1e-9] if len(held) else held
+        if len(acting) and len(part.triangles):
             from scipy.spatial import cKDTree
 
-            near = cKDTree(v[held]).query(v, distance_upper_bound=HOLD_MM * 1e-3)[0] < np.inf
+            # Every point's vertices are held (back = move there), the skin within HOLD_MM
+            # of those the field reaches bends, the rest keeps the field.
+            near = cKDTree(v[acting]).query(v, distance_upper_bound=HOLD_MM * 1e-3)[0] < np.inf
             free = np.flatnonzero(near & ~np.isin(np.arange(len(v)), held))
             back = np.zeros(len(v))
             back[held] = move[held]
