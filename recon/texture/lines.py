@@ -169,9 +169,10 @@ def view_line(points3d: Mapping[str, np.ndarray], skin_vertices: np.ndarray, ski
     Returns
     -------
     points : (K, 3) float64
-        Metres.
+        Metres: the feature line over the skull, then the splits below the brow's end.
     is_fp : (K,) bool
-        Which of them are feature points.
+        Which of them are feature points (the top of the skull, the hairline's end and the
+        brow's end).
     """
     from mpeg4.render import vertex_normals
 
