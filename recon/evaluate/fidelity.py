@@ -24,8 +24,8 @@ from mpeg4.errors import InputError
 from mpeg4.head import Head
 from recon.texture.cameras import FittedCamera
 
-__all__ = ["Fidelity", "SideFidelity", "AlbedoError", "albedo_error", "cheek_vertices", "face_mask", "reprojection",
-           "side_reprojection", "seam_smoothness"]
+__all__ = ["Fidelity", "SideFidelity", "AlbedoError", "albedo_error", "cheek_vertices", "face_mask", "psnr",
+           "reprojection", "side_reprojection", "seam_smoothness"]
 
 
 @dataclass
@@ -90,8 +90,8 @@ def reprojection(head: Head, photo: np.ndarray, front: FittedCamera, photo_mask:
         region &= cv2.erode(photo_mask.astype(np.uint8), np.ones((2 * shrink + 1,) * 2, np.uint8)) > 0
     if light is not None:
         image = matched_gain(image, photo, region)
-    psnr, ssim = _compare(image, photo, region)
-    return Fidelity(psnr, ssim, int(region.sum()))
+    db, ssim = _compare(image, photo, region)
+    return Fidelity(db, ssim, int(region.sum()))
 
 
 def _render_skin(head: Head, cam: FittedCamera, vertex_colours: np.ndarray | None = None,
@@ -137,19 +137,23 @@ def matched_gain(image: np.ndarray, photo: np.ndarray, region: np.ndarray) -> np
     return np.clip(np.round(image.astype(np.float64) * gain), 0, 255).astype(np.uint8)
 
 
+def psnr(image: np.ndarray, photo: np.ndarray, region: np.ndarray) -> float:
+    """PSNR (dB, RGB, 8 bits) of an image against a photo over a region ((H, W) bool)."""
+    diff = image[region].astype(np.float64) - photo[region].astype(np.float64)
+    return float(10 * np.log10(255.0 ** 2 / max(float(np.mean(diff ** 2)), 1e-12)))
+
+
 def _compare(image: np.ndarray, photo: np.ndarray, region: np.ndarray) -> tuple[float, float]:
     """PSNR (dB, RGB) and mean SSIM (grey, 7 x 7 windows) of an image against a photo in a region."""
     from skimage.metrics import structural_similarity
 
-    diff = image[region].astype(np.float64) - photo[region].astype(np.float64)
-    mse = float(np.mean(diff ** 2))
-    psnr = float(10 * np.log10(255.0 ** 2 / max(mse, 1e-12)))
+    value = psnr(image, photo, region)
     ys, xs = np.nonzero(region)
     y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
     a = cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_RGB2GRAY)
     b = cv2.cvtColor(np.ascontiguousarray(photo[y0:y1, x0:x1]), cv2.COLOR_RGB2GRAY)
     _, smap = structural_similarity(a, b, data_range=255, win_size=7, full=True)
-    return psnr, float(smap[region[y0:y1, x0:x1]].mean())
+    return value, float(smap[region[y0:y1, x0:x1]].mean())
 
 
 @dataclass
@@ -260,7 +264,7 @@ def side_reprojection(head: Head, skin, photo: np.ndarray, side: FittedCamera, p
         region &= cv2.erode(photo_mask.astype(np.uint8), np.ones((2 * shrink + 1,) * 2, np.uint8)) > 0
     if light is not None:
         image = matched_gain(image, photo, region)
-    psnr, ssim = _compare(image, photo, region)
+    db, ssim = _compare(image, photo, region)
     # The cheek and the side layer: rendered as white patches on black, shrunk off their rims.
     patches = {}
     for name, sel in (("cheek", cheek_vertices(head, side, facing_deg)), ("side", skin.vertex_region == SEEN)):
@@ -273,8 +277,8 @@ def side_reprojection(head: Head, skin, photo: np.ndarray, side: FittedCamera, p
         gradient = _gradient_energy(image, cheek_px) / _gradient_energy(photo, cheek_px)
     else:
         d, gradient = np.full(3, np.nan), np.full(2, np.nan)
-    side_psnr = _compare(image, photo, patches["side"])[0] if patches["side"].any() else float("nan")
-    return SideFidelity(psnr, ssim, int(region.sum()), side_psnr, d, int(cheek_px.sum()), gradient)
+    side_psnr = psnr(image, photo, patches["side"]) if patches["side"].any() else float("nan")
+    return SideFidelity(db, ssim, int(region.sum()), side_psnr, d, int(cheek_px.sum()), gradient)
 
 
 def _gradient_energy(image: np.ndarray, region: np.ndarray) -> np.ndarray:

@@ -190,10 +190,8 @@ def cheek_psnr(photo: np.ndarray, render: np.ndarray, region: np.ndarray) -> flo
     """PSNR (dB, RGB) of a render against the photo over ``region``, after the one gain that
     brings the render's luma to the photo's there (a de-lit texture is the albedo up to the
     light's strength, which no photo tells)."""
-    from recon.evaluate.fidelity import matched_gain
+    from recon.evaluate.fidelity import matched_gain, psnr
 
     if region.sum() < 100:
         return float("nan")
-    image = matched_gain(render, photo, region)
-    diff = image[region].astype(np.float64) - photo[region].astype(np.float64)
-    return float(10 * np.log10(255.0 ** 2 / max(float(np.mean(diff ** 2)), 1e-12)))
+    return psnr(matched_gain(render, photo, region), photo, region)
