@@ -49,11 +49,10 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.interpolate import LinearNDInterpolator
-from scipy.sparse.linalg import splu
 
 from mpeg4.head import Head
 from mpeg4.seams import merged_surface
-from mpeg4.surface import bilaplacian
+from mpeg4.surface import bilaplacian, smoothest_fill
 
 from .unfold import unfold_offsets
 
@@ -108,13 +107,10 @@ def forehead_motion(head: Head, v: np.ndarray, t: np.ndarray, offsets: np.ndarra
     out = np.array(offsets, dtype=np.float64)
     free = (v[:, 1] > top) & (v[:, 2] > crown)
     if free.any():
-        q = bilaplacian(v, t)
         try:
-            lu = splu(q[free][:, free].tocsc())
+            out[:, 1] = smoothest_fill(bilaplacian(v, t), out[:, 1], free)
         except RuntimeError:  # no boundary around it: leave the motion as given
-            lu = None
-        if lu is not None:
-            out[free, 1] = lu.solve(-np.asarray(q[free][:, ~free] @ out[~free, 1]))
+            pass
     if not slide:
         return out
     # The forehead seen from the front is a height field: depth at (x, y).

@@ -37,15 +37,13 @@ jaw keeps its lips on it); rotations (eyeballs, head turns); the visemes and exp
 from __future__ import annotations
 
 import numpy as np
-from scipy import sparse
-from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
 from mpeg4.catalogue import FAPS
 from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable
 from mpeg4.head import Head
 from mpeg4.seams import merged_surface
-from mpeg4.surface import bilaplacian, contour_path, edge_graph
+from mpeg4.surface import bilaplacian, contour_path, edge_graph, smoothest_fill
 
 __all__ = ["REACH", "CHAINS", "held_rows", "correction_basis", "separate_tables"]
 
@@ -118,10 +116,8 @@ def correction_basis(head: Head, points: list[str], reach: float = REACH) -> np.
         values[rows, k] = 1.0
     far, _ = cKDTree(np.array([head.fp_position(fp) for fp in points])).query(v)
     held |= far > reach
-    free = ~held
-    if free.any():
-        q = bilaplacian(v, t)
-        values[free] = splu(q[free][:, free].tocsc()).solve(-np.asarray((q[free][:, held] @ values[held])))
+    if not held.all():
+        values = smoothest_fill(bilaplacian(v, t), values, ~held)
     return values[inverse]
 
 

@@ -42,13 +42,12 @@ from __future__ import annotations
 
 import numpy as np
 from scipy import sparse
-from scipy.sparse.linalg import splu
 from scipy.spatial import cKDTree
 
 from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, fap_unit
 from mpeg4.head import Head
 from mpeg4.seams import merged_surface
-from mpeg4.surface import bilaplacian, inverted_triangles
+from mpeg4.surface import bilaplacian, inverted_triangles, smoothest_fill
 
 __all__ = ["REACHES", "EXTENT", "KEPT", "CORNER_PAIRS", "CORNERS", "GLUE_SHARE", "corner_glue", "unfold_offsets",
            "unfold_tables", "unfold_targets"]
@@ -132,14 +131,10 @@ def unfold_offsets(vertices: np.ndarray, triangles: np.ndarray, offsets: np.ndar
     region = np.zeros(len(vertices), bool)
     for reach in REACHES:
         region |= cKDTree(vertices[corners]).query(vertices, distance_upper_bound=reach)[0] <= reach
-        free = region & ~held
-        fixed = ~free
-        trial = np.array(offsets, dtype=np.float64)
         try:
-            lu = splu(q[free][:, free].tocsc())
+            trial = smoothest_fill(q, offsets, region & ~held)
         except RuntimeError:  # a piece of mesh with nothing held around it: no unique smooth motion
             continue
-        trial[free] = lu.solve(-np.asarray(q[free][:, fixed] @ trial[fixed]))
         corners, count = folds(trial)
         better = (all(c <= f for c, f in zip(count, fewest)) and count != fewest) if no_worse else count < fewest
         if better:

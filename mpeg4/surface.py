@@ -16,8 +16,8 @@ from scipy.sparse.csgraph import dijkstra
 from .head import Head
 from .seams import seam_copies
 
-__all__ = ["DETOUR", "edge_graph", "fp_vertex", "contour_path", "nearest_seed_labels", "bilaplacian", "triangle_normals",
-           "inverted_triangles"]
+__all__ = ["DETOUR", "edge_graph", "fp_vertex", "contour_path", "nearest_seed_labels", "bilaplacian", "smoothest_fill",
+           "triangle_normals", "inverted_triangles"]
 
 # A path longer than this many times the straight distance between its feature points
 # has not found the contour.
@@ -139,6 +139,37 @@ def bilaplacian(vertices: np.ndarray, triangles: np.ndarray) -> sparse.csr_matri
     d = np.asarray(w.sum(axis=1)).ravel()
     lap = sparse.diags(d) - w
     return (lap @ sparse.diags(1.0 / np.maximum(d, 1e-12)) @ lap).tocsr()
+
+
+def smoothest_fill(q: sparse.spmatrix, values: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """``values`` with its ``free`` rows the smoothest the operator ``q`` allows given the
+    others: the solution of ``q[free] @ x = 0`` with the other rows fixed (with ``q`` the
+    :func:`bilaplacian`, the bi-harmonic fill).
+
+    Parameters
+    ----------
+    q : (N, N) sparse
+    values : (N,) or (N, K) float
+    free : (N,) bool
+
+    Returns
+    -------
+    (N,) or (N, K) float64
+        A new array.
+
+    Raises
+    ------
+    RuntimeError
+        When some free rows have nothing fixed around them (``q[free][:, free]`` singular).
+    """
+    from scipy.sparse.linalg import splu
+
+    out = np.array(values, dtype=np.float64)
+    free = np.asarray(free, dtype=bool)
+    if free.any():
+        q = sparse.csr_matrix(q)[free]
+        out[free] = splu(q[:, free].tocsc()).solve(-np.asarray(q[:, ~free] @ out[~free]))
+    return out
 
 
 def triangle_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:

@@ -29,12 +29,11 @@ from importlib import resources
 import numpy as np
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
-from scipy.sparse.linalg import spsolve
 from scipy.spatial import Delaunay
 
 from mpeg4.errors import InputError
 from mpeg4.head import Head
-from mpeg4.surface import bilaplacian
+from mpeg4.surface import bilaplacian, smoothest_fill
 
 from .contours import contour_pairs
 from .interpolate import TriangleIndex
@@ -261,9 +260,7 @@ def surface_warp(head: Head, space: np.ndarray, tri: FPTriangulation, from_posit
     free &= anchored[piece]
     shift = moved - space[:, :2]
     if free.any():
-        big = bilaplacian(head.skin.vertices, t)
-        rhs = -(big[free][:, ~free] @ shift[~free])
-        shift[free] = spsolve(big[free][:, free].tocsc(), rhs).reshape(-1, 2)
+        shift = smoothest_fill(bilaplacian(head.skin.vertices, t), shift, free)
     return np.c_[space[:, :2] + shift, space[:, 2] * np.exp(log_rho[:, 0])]
 
 

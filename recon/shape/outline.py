@@ -212,10 +212,7 @@ def follow_profile(head: Head, controls: ProfileControls, width_mm: float = PROF
     The profile's moves were once DFFD controls on the midline's vertices, 3 mm apart: the
     DFFD is only continuous at its controls, and a row of them folded the skin along the
     midline (a crease down the philtrum and the chin of a real pair's head)."""
-    from scipy import sparse
-    from scipy.sparse.linalg import spsolve
-
-    from mpeg4.surface import bilaplacian
+    from mpeg4.surface import bilaplacian, smoothest_fill
 
     from .deform import RIGID_PARTS
 
@@ -239,13 +236,13 @@ def follow_profile(head: Head, controls: ProfileControls, width_mm: float = PROF
             # Every point's vertices are held (back = move there), the skin within HOLD_MM
             # of those the field reaches bends, the rest keeps the field.
             near = cKDTree(v[acting]).query(v, distance_upper_bound=HOLD_MM * 1e-3)[0] < np.inf
-            free = np.flatnonzero(near & ~np.isin(np.arange(len(v)), held))
+            free = near & ~np.isin(np.arange(len(v)), held)
             back = np.zeros(len(v))
             back[held] = move[held]
-            if len(free):
-                q = bilaplacian(v, part.triangles)
-                rhs = -(q[free][:, held] @ move[held])
-                back[free] = spsolve(sparse.csc_matrix(q[free][:, free]), rhs)
+            try:
+                back = smoothest_fill(bilaplacian(v, part.triangles), back, free)
+            except RuntimeError:  # skin near a point but on a piece of its own: the point alone held
+                pass
             move = move - back
         part.vertices = v + move[:, None] * [0.0, 0.0, 1.0]
     return out
