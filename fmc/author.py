@@ -44,7 +44,7 @@ from .push import PUSH_FAPS, along_axis
 from .separate import separate_tables
 from .unfold import unfold_tables
 
-__all__ = ["JAW_PARTS", "JAW_FAPS", "moving_parts", "REGIONS", "ADJACENT", "region_of", "unrelated",
+__all__ = ["JAW_PARTS", "JAW_FAPS", "WEIGHT_COST", "governed_axes", "moving_parts", "REGIONS", "ADJACENT", "region_of", "unrelated",
            "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit", "smooth_partition",
            "author_from_shapes", "unfold_report"]
 
@@ -329,16 +329,49 @@ def unfold_report(head: Head, fat: FAT, report: list[FapFit]) -> FAT:
     return fat
 
 
+#: What a shape's unit weight costs in the fit, as a share of the goal's length the own
+#: point could miss by instead: the tolerance a fit is accepted at (``tol``). Without it the
+#: fit cancelled shapes against each other at weights far past the sculpts' range (the
+#: cheek's lift took ``eyeSquint_L`` at 13.6; the lip corner's stretch ``cheekPuff_L`` at
+#: 2.2 to hold the corner's depth), and their sum balloons the face between its points.
+WEIGHT_COST = 0.10
+
+
+def governed_axes(fp_id: str) -> np.ndarray:
+    """(3,) bool: the axes along which some translation FAP moves feature point ``fp_id``
+    (8.3, the outer left lip corner: x by its stretch, y by its raise; its depth no FAP
+    sets)."""
+    out = np.zeros(3, dtype=bool)
+    for fap in FAPS.values():
+        if fap.kind == "translation" and fap.feature_points[0] == fp_id:
+            out |= np.asarray(fap.axis_vector) != 0
+    return out
+
+
 def _solve(head, names, a, ids, k, bad, goal, parts=None):
-    """NNLS for the shape weights; the displacement, its FP error, leak and weights."""
+    """NNLS for the shape weights; the displacement, its FP error, leak and weights.
+
+    The own point is fitted along the axes some FAP governs (:func:`governed_axes`) and
+    left free along the others: a stretched lip corner follows the face back in depth, as
+    the sculpted stretch moves it, where holding its depth still made the fit puff the
+    cheek out to push the corner forward again (the cheek moved 8 mm out of the face at a
+    stretch of 150, the corner 7.4 mm). Each shape's weight is paid for
+    (:data:`WEIGHT_COST`, a ridge on the non-negative least squares).
+    """
     if a.shape[1] == 0:
         return {}, np.inf, np.inf, np.zeros(0)
     weights = np.where(bad, 1.0, 0.1)
     weights[k] = 3.0
     row_w = np.repeat(weights, 3)
+    axes = governed_axes(ids[k])
+    row_w[3 * k:3 * k + 3] *= axes
     target = np.zeros(3 * len(ids))
     target[3 * k:3 * k + 3] = goal
-    w, _ = nnls(a * row_w[:, None], target * row_w, maxiter=2000)
+    # A unit weight costs as much as the own point (row weight 3) missing by WEIGHT_COST of the goal.
+    cost = WEIGHT_COST * 3.0 * float(np.linalg.norm(goal))
+    a_w = np.vstack([a * row_w[:, None], cost * np.eye(a.shape[1])])
+    t_w = np.concatenate([target * row_w, np.zeros(a.shape[1])])
+    w, _ = nnls(a_w, t_w, maxiter=2000)
     along = a[3 * k:3 * k + 3] @ w
     g = np.linalg.norm(goal)
     # Scale so the motion along the FAP's axis is exactly the target.
@@ -347,7 +380,7 @@ def _solve(head, names, a, ids, k, bad, goal, parts=None):
         return {}, np.inf, np.inf, w
     w = w / proj
     motion = (a @ w).reshape(-1, 3)
-    err = float(np.linalg.norm(motion[k] - goal) / g)
+    err = float(np.linalg.norm((motion[k] - goal)[axes]) / g)
     leak = float(np.linalg.norm(motion[bad], axis=1).max(initial=0) / g)
     return combine_shapes(head, names, w, parts), err, leak, w
 

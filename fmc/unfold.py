@@ -318,7 +318,7 @@ class _Relaxer:
 
     def __call__(self, offsets: np.ndarray, scales, **options) -> tuple[np.ndarray | None, int]:
         """``(relaxed, still_inverted)``, or ``(None, 0)`` when ``offsets`` (already
-        :meth:`glue`\ d) fold nowhere."""
+        glued, :meth:`glue`) fold nowhere."""
         if not inverted_triangles(self.v, self.t, offsets, scales).any():
             return None, 0
         self.q = bilaplacian(self.v, self.t) if self.q is None else self.q

@@ -6,7 +6,7 @@ import pytest
 from mpeg4 import FAPS, FP_IDS, InputError, apply_fat
 from mpeg4.fat import fap_unit
 from mpeg4.generic_head import load_generic_head
-from fmc.author import author_from_shapes, lip_side, unrelated
+from fmc.author import author_from_shapes, governed_axes, lip_side, unrelated
 from fmc.conformance import SurfaceChecks
 
 
@@ -43,7 +43,12 @@ def test_translation_faps_move_their_point_and_not_unrelated_ones(authored, n):
             assert abs(motion[fp] @ goal / g - g) <= 0.10 * g, (fap.name, value)
             assert np.linalg.norm(motion[fp] - goal) <= 0.5 * g, (fap.name, value)
         else:
-            assert np.linalg.norm(motion[fp] - goal) <= 0.10 * g, (fap.name, value, report[n].route)
+            # Along the axes FAPs govern, as the standard says; across them (a lip corner's
+            # depth) free, as far as the sculpted shapes take it (mouthStretch_L: 1.07 times
+            # the corner's sideways motion), not further.
+            axes = governed_axes(fp)
+            assert np.linalg.norm((motion[fp] - goal)[axes]) <= 0.10 * g, (fap.name, value, report[n].route)
+            assert np.linalg.norm(motion[fp][~axes]) <= 1.5 * g, (fap.name, value, report[n].route)
         leaks = {i: np.linalg.norm(m) / g for i, m in motion.items() if bad[i]}
         worst = max(leaks, key=leaks.get)
         # 8.1 moves its lip's outer contour; the inner contour 2.2 below it is the same lip.
@@ -253,3 +258,35 @@ def test_high_level_poses_open_the_mouth_symmetrically(high_level, key):
         dl, dr = pose[left] - base[left], (pose[right] - base[right]) * mirror
         assert np.linalg.norm(dl - dr) <= 0.02 * max(scale, 1e-3), (key, left, right, dl, dr)
     assert abs(pose["8.2"][0] - base["8.2"][0]) <= 0.02 * max(scale, 1e-3)  # the lower lip's middle stays centred
+
+
+def _outward_beyond(head, moved, fp, reach):
+    """Largest skin motion along the neutral surface's normals (metres, outwards positive)
+    further than ``reach`` from point ``fp``."""
+    from mpeg4.render import vertex_normals
+
+    skin = head.parts["skin"]
+    rest = np.asarray(skin.vertices, dtype=np.float64)
+    normals = vertex_normals(rest, np.asarray(skin.triangles))
+    far = np.linalg.norm(rest - head.fp_position(fp), axis=1) > reach
+    return float(((moved - rest) * normals).sum(axis=1)[far].max())
+
+
+def test_a_stretched_lip_corner_keeps_the_cheek_on_the_face(authored):
+    # Greta's joy stretches both contours' corners by 150: the fit held the corner's depth
+    # still and puffed the cheek to do it (8.0 mm out of the face beyond 10 mm from the
+    # corner, the corner 7.4 mm sideways). The sculpted stretch itself, scaled to the same
+    # sideways motion, swells the cheek 0.51 times that; the table must do no worse (1.08
+    # before, 0.38 now).
+    head, _ = authored
+    rest = {n: p.vertices for n, p in head.parts.items()}
+    moved = apply_fat(head.fat, rest, {6: 150.0, 53: 150.0}, head.fapu)["skin"]
+    # The inner and outer contours' stretches move their corner once, not twice.
+    sideways = (head.fp_position("8.3", {"skin": moved}) - head.fp_position("8.3"))[0]
+    assert sideways == pytest.approx(150.0 * fap_unit(53, head.fapu), rel=0.1)
+    table = _outward_beyond(head, moved, "8.3", 0.010) / sideways
+    shape = head.morph_targets["mouthStretch_L"]["skin"]
+    sculpt = np.array(head.parts["skin"].vertices, dtype=np.float64)
+    sculpt[shape.indices] += shape.vectors
+    sculpt_sideways = (head.fp_position("8.3", {"skin": sculpt}) - head.fp_position("8.3"))[0]
+    assert table <= _outward_beyond(head, sculpt, "8.3", 0.010) / sculpt_sideways  # 0.38 against 0.51
