@@ -96,8 +96,9 @@ class FapFit:
         Shape name → weight (positive direction), for ``route == "shapes"``; for the brow
         raisers, the weight where the FAP's piece of the raise is whole.
     folds : int
-        Skin triangles the table alone still turns over at its worst border or at the
-        value :data:`fmc.unfold.EXTENT`, after :func:`fmc.unfold.unfold_tables`.
+        Skin triangles the table alone still turns over at its worst border or (but for
+        the lips', :data:`fmc.unfold.LIP_FAPS`) at the value :data:`fmc.unfold.EXTENT`,
+        after :func:`fmc.unfold.unfold_tables`.
     """
 
     fap: int

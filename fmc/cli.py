@@ -67,7 +67,7 @@ def author(head: Path = typer.Argument(..., help="Head with feature points (.glb
                f"worst feature point error {max(r.error for r in report):.1%}, "
                f"worst leak into unrelated points {max(r.leak for r in report):.1%}; "
                f"{sum(r.folds > 0 for r in report)} tables alone still turn skin triangles over at their borders "
-               f"or at ±{EXTENT:.0f} (most: {max(r.folds for r in report)}; see fmc.unfold)")
+               f"or, but for the lips', at ±{EXTENT:.0f} (most: {max(r.folds for r in report)}; see fmc.unfold)")
 
 
 #: The head argument of play, say and animate (read by fmc.heads.animated_head).
