@@ -44,8 +44,8 @@ from .push import PUSH_FAPS, along_axis
 from .separate import separate_tables
 from .unfold import unfold_tables
 
-__all__ = ["JAW_PARTS", "JAW_FAPS", "WEIGHT_COST", "governed_axes", "moving_parts", "REGIONS", "ADJACENT", "region_of", "unrelated",
-           "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit", "smooth_partition",
+__all__ = ["JAW_PARTS", "JAW_FAPS", "WEIGHT_COST", "governed_axes", "moving_parts", "REGIONS", "ADJACENT",
+           "region_of", "unrelated", "MOUTH_LINE_FPS", "mouth_line", "lip_side", "FapFit", "smooth_partition",
            "author_from_shapes", "unfold_report"]
 
 #: FP group → face region. Regions follow the muscles that move them together: the soft
@@ -331,7 +331,7 @@ def unfold_report(head: Head, fat: FAT, report: list[FapFit]) -> FAT:
 
 
 #: What a shape's unit weight costs in the fit, as a share of the goal's length the own
-#: point could miss by instead: the tolerance a fit is accepted at (``tol``). Without it the
+#: point could miss by instead: the default tolerance a fit is accepted at (``tol``). Without it the
 #: fit cancelled shapes against each other at weights far past the sculpts' range (the
 #: cheek's lift took ``eyeSquint_L`` at 13.6; the lip corner's stretch ``cheekPuff_L`` at
 #: 2.2 to hold the corner's depth), and their sum balloons the face between its points.

@@ -49,8 +49,8 @@ from mpeg4.head import Head
 from mpeg4.seams import merged_surface
 from mpeg4.surface import bilaplacian, inverted_triangles, smoothest_fill
 
-__all__ = ["REACHES", "EXTENT", "LIP_FAPS", "KEPT", "CORNER_PAIRS", "CORNERS", "GLUE_SHARE", "corner_glue", "unfold_offsets",
-           "unfold_tables", "unfold_targets"]
+__all__ = ["REACHES", "EXTENT", "LIP_FAPS", "KEPT", "CORNER_PAIRS", "CORNERS", "GLUE_SHARE", "corner_glue",
+           "unfold_offsets", "unfold_tables", "unfold_targets"]
 
 #: Distance, metres, around the folds within which the motion is relaxed, at each try.
 REACHES = (0.001, 0.002, 0.004, 0.008, 0.016)
