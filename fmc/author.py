@@ -97,7 +97,7 @@ class FapFit:
         raisers, the weight where the FAP's piece of the raise is whole.
     folds : int
         Skin triangles the table alone still turns over at its worst border or (but for
-        the lips', :data:`fmc.unfold.LIP_FAPS`) at the value :data:`fmc.unfold.EXTENT`,
+        the lips', :data:`fmc.unfold.CONTOUR_FAPS`) at the value :data:`fmc.unfold.EXTENT`,
         after :func:`fmc.unfold.unfold_tables`.
     """
 

@@ -14,7 +14,7 @@ nothing is turned over, keeping the try with the fewest folds. Feature points' v
 are held: the motion the standard defines (a FAP's own point, the points
 :mod:`fmc.separate` keeps still) does not change. :func:`unfold_tables` does this for every
 low-level skin table of a FAT at each interval border and, beyond the outer ones, at the
-value :data:`EXTENT` that streams reach (the lips' tables excepted, :data:`LIP_FAPS`).
+value :data:`EXTENT` that streams reach (the lips' tables excepted, :data:`CONTOUR_FAPS`).
 
 At the lip corners the two lips' vertices lie a few hundredths of a millimetre apart: every
 table moves the other lip's corner vertex with the corner's (:func:`corner_glue`), so that
@@ -46,10 +46,11 @@ from scipy.spatial import cKDTree
 
 from mpeg4.fat import FAT, FaceDefMesh, FaceDefTable, fap_unit
 from mpeg4.head import Head
+from mpeg4.io.fap import LIP_CONTOUR_PAIRS
 from mpeg4.seams import merged_surface
 from mpeg4.surface import bilaplacian, inverted_triangles, smoothest_fill
 
-__all__ = ["REACHES", "EXTENT", "LIP_FAPS", "KEPT", "CORNER_PAIRS", "CORNERS", "GLUE_SHARE", "corner_glue",
+__all__ = ["REACHES", "EXTENT", "CONTOUR_FAPS", "KEPT", "CORNER_PAIRS", "CORNERS", "GLUE_SHARE", "corner_glue",
            "unfold_offsets", "unfold_tables", "unfold_targets"]
 
 #: Distance, metres, around the folds within which the motion is relaxed, at each try.
@@ -57,14 +58,14 @@ REACHES = (0.001, 0.002, 0.004, 0.008, 0.016)
 #: FAP value (each way) up to which a table's motion is unfolded beyond its outer borders:
 #: streams go beyond the usual ±512 (the lids close at 1024, the jaw opens past 512).
 EXTENT = 1024.0
-#: The lips' FAPs (inner contour 4-13, outer 51-60), unfolded up to their interval border
-#: only (512 MNS, a lip point 10.6 mm; :mod:`fmc.limits` stops lips that meet). A lip
-#: point lies 3.5 to 10 mm from the next lip point its table holds still: relaxed at 1024,
-#: where a corner lowered 21 mm folds the crease between the two corners, the outer
-#: corner's lowering was given a cone at the inner corner that every value then played,
-#: and the crease's 0.3 mm edges stretched four times in Greta's sadness (4.28, 1.84 now)
-#: and disgust (3.87, 1.98).
-LIP_FAPS = frozenset(range(4, 14)) | frozenset(range(51, 61))
+#: The lips' contour FAPs (inner 4-13, outer 51-60: :data:`mpeg4.io.fap.LIP_CONTOUR_PAIRS`),
+#: unfolded up to their interval border only (512 MNS, a lip point 10.6 mm; :mod:`fmc.limits`
+#: stops lips that meet). A lip point lies 3.5 to 10 mm from the next lip point its table
+#: holds still: relaxed at 1024, where a corner lowered 21 mm folds the crease between the
+#: two corners, the outer corner's lowering was given a cone at the inner corner that every
+#: value then played, and the crease's 0.3 mm edges stretched four times in Greta's
+#: sadness (4.28, 1.84 now) and disgust (3.87, 1.98).
+CONTOUR_FAPS = frozenset(LIP_CONTOUR_PAIRS) | frozenset(LIP_CONTOUR_PAIRS.values())
 #: FAPs left as authored by default. The brow raisers 31-36 are pieces of one sculpted raise
 #: (:func:`fmc.brow_raise.brow_partition`) that add up to it; relaxed one by one they no longer
 #: do: all six at 200 creased the forehead by 12 to 19 degrees of fold growth, not 7 (their
@@ -201,7 +202,7 @@ def unfold_tables(head: Head, fat: FAT | None = None, *, keep=KEPT) -> tuple[FAT
                 if n in keep:
                     continue
                 # Beyond the outer borders the slope goes on: streams go that far.
-                far = max(1.0, EXTENT / abs(b[k])) if k in (0, len(b) - 1) and n not in LIP_FAPS else 1.0
+                far = max(1.0, EXTENT / abs(b[k])) if k in (0, len(b) - 1) and n not in CONTOUR_FAPS else 1.0
                 relaxed, bad = relax(far * glued, (1.0 / far, 1.0))
                 if relaxed is None:
                     continue

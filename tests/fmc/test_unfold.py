@@ -181,7 +181,7 @@ def test_the_lips_corner_vertices_move_as_one():
 
 def test_a_lowered_lip_corner_keeps_its_crease_whole():
     """Greta's sadness lowers the inner corners by 220 and the outer by 350. Relaxed for
-    folds at 1024, beyond a lip's range (:data:`fmc.unfold.LIP_FAPS`), the outer corner's
+    folds at 1024, beyond a lip's range (:data:`fmc.unfold.CONTOUR_FAPS`), the outer corner's
     table had a cone at the inner corner, which it holds still: the crease's 0.3 mm edges
     within 1.5 mm of the corners stretched 3.2 times (4.2 once the shape fits paid for
     their weights), 1.8 now."""
