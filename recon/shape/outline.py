@@ -212,6 +212,8 @@ def follow_profile(head: Head, controls: ProfileControls, width_mm: float = PROF
     The profile's moves were once DFFD controls on the midline's vertices, 3 mm apart: the
     DFFD is only continuous at its controls, and a row of them folded the skin along the
     midline (a crease down the philtrum and the chin of a real pair's head)."""
+    from scipy.spatial import cKDTree
+
     from mpeg4.surface import bilaplacian, smoothest_fill
 
     from .deform import RIGID_PARTS
@@ -231,8 +233,6 @@ def follow_profile(head: Head, controls: ProfileControls, width_mm: float = PROF
                                 for i in b.vertices}), dtype=np.int64)
         acting = held[np.abs(move[held]) > 1e-9] if len(held) else held
         if len(acting) and len(part.triangles):
-            from scipy.spatial import cKDTree
-
             # Every point's vertices are held (back = move there), the skin within HOLD_MM
             # of those the field reaches bends, the rest keeps the field.
             near = cKDTree(v[acting]).query(v, distance_upper_bound=HOLD_MM * 1e-3)[0] < np.inf
